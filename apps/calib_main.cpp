@@ -1,0 +1,125 @@
+// calib: the command-line front end. Parses options (CLI11), calls the work in
+// calib::jobs and prints what it did. Every error from bad input ends here as
+// one message on stderr and exit status 2.
+
+#include "calib/core/parameters.h"
+#include "calib/jobs/commands.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <string>
+
+namespace {
+
+using calib::CommandSettings;
+
+// Options shared by every subcommand that meshes and simulates a recording.
+void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* integrator,
+                     std::string* cache_dir, bool* no_cache) {
+  cmd->add_option("--edge", settings->preparation.mesher.edge_length_px,
+                  "target mesh edge length, pixels")
+      ->capture_default_str();
+  cmd->add_option("--substeps", settings->simulation.substeps, "integration substeps per frame")
+      ->capture_default_str();
+  cmd->add_option("--integrator", *integrator, "first_order (paper eq. 10) or verlet (eq. 8)")
+      ->capture_default_str();
+  cmd->add_option("--cache-dir", *cache_dir, "segmentation cache folder")->capture_default_str();
+  cmd->add_flag("--no-cache", *no_cache, "do not read or write the segmentation cache");
+}
+
+void Finish(CommandSettings* settings, const std::string& integrator, const std::string& cache_dir,
+            bool no_cache) {
+  settings->simulation.integrator = calib::IntegratorKindFromString(integrator);
+  settings->preparation.cache_dir = no_cache ? std::filesystem::path() : std::filesystem::path(cache_dir);
+}
+
+void PrintResult(const calib::EvaluationResult& result) {
+  fmt::print("score (XOR pixels summed over frames): {}\n", result.xor_sum);
+  fmt::print("mean IoU: {:.4f} over {} of {} frames\n", result.mean_iou, result.frames.size(),
+             result.num_frames);
+  if (result.ok()) {
+    fmt::print("status: ok\n");
+  } else {
+    fmt::print("status: failed at frame {}: {}\n", result.failure_frame, result.failure_reason);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "calib: calibrates a 2D mass-spring model of a deformable object against a video.\n"
+      "Recordings follow shared/spec/dataset.md."};
+  app.require_subcommand(1);
+  spdlog::set_pattern("%^[%l]%$ %v");
+
+  CommandSettings settings;
+  std::string integrator = calib::ToString(settings.simulation.integrator);
+  std::string cache_dir = settings.preparation.cache_dir.string();
+  bool no_cache = false;
+  std::filesystem::path recording, params, out = "out";
+
+  auto* mesh = app.add_subcommand("mesh", "mesh the object in frame 0; write mesh.json and mesh.png");
+  mesh->add_option("recording", recording, "recording folder")->required();
+  mesh->add_option("--out", out, "output folder")->capture_default_str();
+  AddModelOptions(mesh, &settings, &integrator, &cache_dir, &no_cache);
+
+  calib::SimulateOptions simulate_options;
+  bool no_video = false;
+  auto* simulate = app.add_subcommand(
+      "simulate", "simulate with a parameter file; write frames.csv and overlays");
+  simulate->add_option("recording", recording, "recording folder")->required();
+  simulate->add_option("--params", params, "parameter file (JSON: name -> number)")->required();
+  simulate->add_option("--out", out, "output folder")->capture_default_str();
+  simulate->add_option("--png-frames", simulate_options.png_frames,
+                       "frames to write as overlay PNGs (the worst frame is always written)")
+      ->delimiter(',');
+  simulate->add_flag("--no-video", no_video, "do not write overlay.mp4");
+  AddModelOptions(simulate, &settings, &integrator, &cache_dir, &no_cache);
+
+  auto* score = app.add_subcommand("score", "simulate with a parameter file and print the score");
+  score->add_option("recording", recording, "recording folder")->required();
+  score->add_option("--params", params, "parameter file (JSON: name -> number)")->required();
+  AddModelOptions(score, &settings, &integrator, &cache_dir, &no_cache);
+
+  auto* params_cmd = app.add_subcommand("params", "list the model's parameters");
+
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    Finish(&settings, integrator, cache_dir, no_cache);
+    if (*mesh) {
+      const auto summary = calib::RunMesh(recording, out, settings);
+      fmt::print("{}\n", summary.quality.BriefReport());
+      fmt::print("clamped nodes: {}\n", summary.clamped_nodes);
+      fmt::print("wrote {} and {}\n", summary.mesh_json.string(), summary.mesh_png.string());
+    } else if (*simulate) {
+      simulate_options.write_video = !no_video;
+      const auto summary = calib::RunSimulate(recording, params, out, simulate_options, settings);
+      PrintResult(summary.result);
+      fmt::print("per-frame report: {}\n", summary.frames_csv.string());
+      if (!summary.overlay_video.empty()) {
+        fmt::print("overlay video: {}\n", summary.overlay_video.string());
+      }
+      for (const auto& png : summary.overlay_pngs) fmt::print("overlay: {}\n", png.string());
+    } else if (*score) {
+      const auto result = calib::RunScore(recording, params, settings);
+      PrintResult(result);
+      return result.ok() ? 0 : 3;
+    } else if (*params_cmd) {
+      for (const auto& spec : calib::BaseModelParameterSpecs()) {
+        fmt::print("{:<6} {}{}, {}]  {}  ({})\n", spec.name, spec.lower_open ? "(" : "[",
+                   spec.lower, spec.upper, spec.description, spec.unit);
+      }
+    }
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,85 @@
+// Speed of the evaluation hot loop on the reference scene (see
+// reference_scene.h): one full evaluation (simulate and score all frames),
+// one substep, and one frame's scoring (rasterise + compare).
+//
+//   build/bench/calib_bench --benchmark_min_time=1
+
+#include "reference_scene.h"
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+
+namespace calib::bench {
+namespace {
+
+const PreparedRecording& Scene() {
+  static const PreparedRecording prepared = MakeReferenceScene();
+  return prepared;
+}
+
+void SetMeshCounters(benchmark::State& state) {
+  const Mesh& mesh = Scene().mesh;
+  state.counters["nodes"] = mesh.NumNodes();
+  state.counters["edges"] = mesh.NumEdges();
+  state.counters["triangles"] = mesh.NumTriangles();
+}
+
+void BM_FullEvaluation(benchmark::State& state) {
+  Evaluator evaluator(Scene(), SimulationOptions{});
+  const ModelParameters params = ReferenceParameters();
+  for (auto _ : state) {
+    const EvaluationResult result = evaluator.Evaluate(params);
+    if (!result.ok()) state.SkipWithError(result.failure_reason.c_str());
+    benchmark::DoNotOptimize(result.xor_sum);
+  }
+  SetMeshCounters(state);
+  state.counters["frames"] = Scene().scene.num_frames;
+}
+BENCHMARK(BM_FullEvaluation)->Unit(benchmark::kMillisecond);
+
+void BM_Substep(benchmark::State& state) {
+  Simulator simulator(Scene().mesh, Scene().scene, SimulationOptions{});
+  simulator.Reset(ReferenceParameters());
+  // Move to a loaded frame so the finger is in contact.
+  for (int f = 0; f < 100; ++f) simulator.Advance();
+  for (auto _ : state) {
+    if (!simulator.Substep(0)) state.SkipWithError(simulator.failure_reason().c_str());
+    benchmark::DoNotOptimize(simulator.positions().data());
+  }
+  SetMeshCounters(state);
+}
+BENCHMARK(BM_Substep)->Unit(benchmark::kMicrosecond);
+
+void BM_ForcesOnly(benchmark::State& state) {
+  const Mesh& mesh = Scene().mesh;
+  const Model model(mesh);
+  std::vector<Vec2> x = mesh.rest_positions, v(x.size(), Vec2(0.1, -0.2)), f(x.size());
+  for (size_t i = 0; i < x.size(); ++i) x[i] += Vec2(0.3 * std::sin(i), 0.2 * std::cos(i));
+  const ModelParameters params = ReferenceParameters();
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(model.ComputeForces(params, x, v, f));
+  }
+  SetMeshCounters(state);
+}
+BENCHMARK(BM_ForcesOnly)->Unit(benchmark::kMicrosecond);
+
+void BM_ScoreFrame(benchmark::State& state) {
+  const PreparedRecording& prepared = Scene();
+  Rasterizer rasterizer;
+  BitMask mesh_mask(prepared.object_masks[0]);
+  std::vector<Vec2> x = prepared.mesh.rest_positions;
+  for (Vec2& p : x) p += Vec2(1.3, -0.7);
+  for (auto _ : state) {
+    rasterizer.RasterizeMesh(prepared.mesh, x, mesh_mask);
+    const FrameScore score = CompareMasks(prepared.object_masks[0], mesh_mask);
+    benchmark::DoNotOptimize(score.xor_px);
+  }
+  state.counters["pixels"] = mesh_mask.width() * mesh_mask.height();
+}
+BENCHMARK(BM_ScoreFrame)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace calib::bench
+
+BENCHMARK_MAIN();

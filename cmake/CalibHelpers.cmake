@@ -1,0 +1,22 @@
+# calib_add_library(NAME SOURCES ... DEPENDS ...): one library per top-level
+# folder, aliased as calib::NAME, public headers under include/calib/NAME.
+function(calib_add_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPENDS;PRIVATE_DEPENDS" ${ARGN})
+  add_library(calib_${name} ${ARG_SOURCES})
+  add_library(calib::${name} ALIAS calib_${name})
+  target_include_directories(calib_${name} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>)
+  target_link_libraries(calib_${name} PUBLIC ${ARG_PUBLIC_DEPENDS} PRIVATE ${ARG_PRIVATE_DEPENDS})
+  target_compile_options(calib_${name} PRIVATE -Wall -Wextra -Wpedantic)
+endfunction()
+
+# calib_add_test(NAME SOURCES ... DEPENDS ...): one GoogleTest executable,
+# registered with ctest. Tests find ../shared through CALIB_SHARED_DIR.
+function(calib_add_test name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPENDS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_DEPENDS} calib_test_support GTest::gtest_main)
+  target_compile_options(${name} PRIVATE -Wall -Wextra)
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
+    PROPERTIES ENVIRONMENT "CALIB_SHARED_DIR=${CALIB_SHARED_DIR}")
+endfunction()

@@ -1,0 +1,29 @@
+#pragma once
+// Time integrators for one substep of length h.
+
+#include "calib/core/types.h"
+
+#include <span>
+#include <string>
+
+namespace calib {
+
+enum class IntegratorKind {
+  kFirstOrder,  ///< paper eq. 10: x <- x + h F / m (velocity proportional to force)
+  kVerlet,      ///< paper eq. 8: x <- 2x - x_prev + h^2 F / m (inertia)
+};
+
+std::string ToString(IntegratorKind kind);
+/// Parses "first_order" or "verlet"; throws std::invalid_argument naming the value.
+IntegratorKind IntegratorKindFromString(const std::string& name);
+
+/// First order: x += (h / m) f for nodes with inverse_weight 1 (clamped: 0).
+void StepFirstOrder(double h_over_m, std::span<const Vec2> f, std::span<const double> inverse_weight,
+                    std::span<Vec2> x);
+
+/// Position Verlet: x_next = 2x - x_prev + (h^2 / m) f, then x_prev <- x and
+/// x <- x_next, for nodes with nonzero inverse_weight.
+void StepVerlet(double h2_over_m, std::span<const Vec2> f, std::span<const double> inverse_weight,
+                std::span<Vec2> x, std::span<Vec2> x_prev);
+
+}  // namespace calib

@@ -1,0 +1,31 @@
+#pragma once
+// What the world does to the object over a recording: obstacle discs per
+// frame, the measured push, and the clamps. Built from a recording by the
+// evaluator; the simulator only reads it.
+
+#include "calib/core/types.h"
+
+#include <vector>
+
+namespace calib {
+
+struct Scene {
+  double frame_time_s = 1.0 / 30.0;
+  int num_frames = 0;
+  int num_obstacles = 0;
+  /// num_frames x num_obstacles discs, frame-major.
+  std::vector<Disc> obstacle_discs;
+  /// Index of the obstacle whose sensor measured `forces`, or -1.
+  int force_obstacle = -1;
+  /// Force on the object by the force obstacle, one per frame (empty when
+  /// force_obstacle is -1).
+  std::vector<Vec2> forces;
+  /// Nodes inside these rectangles in frame 0 are held fixed.
+  std::vector<RectPx> clamps;
+
+  const Disc* ObstaclesAt(int frame) const {
+    return obstacle_discs.data() + static_cast<size_t>(frame) * num_obstacles;
+  }
+};
+
+}  // namespace calib

@@ -1,0 +1,101 @@
+#pragma once
+// Runs the model over a scene frame by frame. All buffers are allocated once
+// in the constructor: Reset and Advance allocate nothing, so one Simulator
+// per thread can evaluate many candidates.
+
+#include "calib/core/integrator.h"
+#include "calib/core/model.h"
+#include "calib/core/scene.h"
+
+#include <cstdint>
+#include <string>
+
+namespace calib {
+
+struct SimulationOptions {
+  int substeps = 10;  ///< integration steps per video frame
+  IntegratorKind integrator = IntegratorKind::kFirstOrder;
+  /// Rounds of (obstacles, inversion repair, clamps) after each substep.
+  int constraint_iterations = 8;
+  /// Triangles are kept above this fraction of their rest area.
+  double min_area_fraction = 0.05;
+  /// A node farther than this many mesh diameters from the rest centroid
+  /// means the state diverged.
+  double divergence_diameters = 10.0;
+
+  /// False with a message naming the field, its value and the rule.
+  bool IsValid(std::string* error) const;
+};
+
+enum class SimulationStatus { kRunning, kFinished, kFailed };
+
+class Simulator {
+ public:
+  /// `mesh` and `scene` must outlive the simulator. `options` must be valid.
+  Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options);
+
+  /// Back to frame 0 (the rest shape, at rest) with new parameters.
+  void Reset(const ModelParameters& params);
+
+  /// Simulates from the current frame to the next. Returns false when the
+  /// simulation has failed (now or before) or there is no next frame.
+  bool Advance() {
+    return Advance([](int) {});
+  }
+
+  /// As Advance(), calling after_substep(s) after each substep s that
+  /// succeeded (tests use it to check constraints after every substep).
+  template <class AfterSubstep>
+  bool Advance(AfterSubstep&& after_substep) {
+    if (status_ != SimulationStatus::kRunning) return false;
+    for (int s = 0; s < options_.substeps; ++s) {
+      if (!Substep(s)) return false;
+      after_substep(s);
+    }
+    return FinishFrame();
+  }
+
+  /// Substep s of options.substeps from the current frame towards the next,
+  /// without advancing the frame (exposed for benchmarks). Returns false on
+  /// failure.
+  bool Substep(int substep);
+
+  int frame() const { return frame_; }
+  SimulationStatus status() const { return status_; }
+  const std::string& failure_reason() const { return failure_reason_; }
+  /// Frame at which the failure happened, or -1.
+  int failure_frame() const { return status_ == SimulationStatus::kFailed ? frame_ + 1 : -1; }
+
+  const std::vector<Vec2>& positions() const { return x_; }
+  const std::vector<Disc>& obstacles() const { return discs_; }
+  /// 1 for nodes held by a clamp.
+  const std::vector<uint8_t>& clamped() const { return clamped_; }
+  const Model& model() const { return model_; }
+
+ private:
+  void InterpolateObstacles(double alpha);
+  bool ApplyConstraints();
+  bool FinishFrame();
+  void Fail(std::string reason);
+
+  const Mesh& mesh_;
+  const Scene& scene_;
+  SimulationOptions options_;
+  Model model_;
+  ModelParameters params_;
+
+  std::vector<uint8_t> clamped_;
+  std::vector<double> inverse_weight_;  // 0 for clamped nodes, 1 otherwise
+  Vec2 rest_centroid_ = Vec2::Zero();
+  double divergence_radius_sq_ = 0.0;
+
+  std::vector<Vec2> x_, x_prev_, v_, f_;
+  std::vector<Disc> discs_;  // obstacles at the current substep
+  Vec2 push_ = Vec2::Zero();
+
+  int frame_ = 0;
+  SimulationStatus status_ = SimulationStatus::kRunning;
+  std::string failure_reason_;
+};
+
+}  // namespace calib

@@ -1,0 +1,122 @@
+#include "calib/core/parameters.h"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+namespace calib {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+const ParameterSpec* FindSpec(const std::vector<ParameterSpec>& specs, const std::string& name) {
+  for (const auto& s : specs) {
+    if (s.name == name) return &s;
+  }
+  return nullptr;
+}
+
+std::string KnownNames(const std::vector<ParameterSpec>& specs) {
+  std::string out;
+  for (const auto& s : specs) out += (out.empty() ? "" : ", ") + s.name;
+  return out;
+}
+
+}  // namespace
+
+const std::vector<ParameterSpec>& BaseModelParameterSpecs() {
+  static const std::vector<ParameterSpec> specs = {
+      {"k_D", "force*px", "distance spring stiffness (edge lengths)", 0.0, kInf, false},
+      {"k_d", "force*px*s", "edge damping (Teschner)", 0.0, kInf, false},
+      {"k_A", "force*px", "area spring stiffness (signed triangle areas)", 0.0, kInf, false},
+      {"k_phi", "force*px/rad^2", "angle spring stiffness (corner angles)", 0.0, kInf, false},
+      {"mass", "force*s^2/px", "mass of each node", 0.0, kInf, true},
+      {"tau", "1", "share of the push spread evenly over all nodes (translation)", 0.0, 1.0,
+       false},
+  };
+  return specs;
+}
+
+void ValidateParameters(const ParameterValues& values, const std::vector<ParameterSpec>& specs,
+                        const std::string& source) {
+  for (const auto& [name, value] : values) {
+    const ParameterSpec* spec = FindSpec(specs, name);
+    if (spec == nullptr) {
+      throw ParameterError(fmt::format("{}: unknown parameter '{}' (known: {})", source, name,
+                                       KnownNames(specs)));
+    }
+    if (!std::isfinite(value)) {
+      throw ParameterError(fmt::format("{}: parameter '{}' = {} is not finite", source, name,
+                                       value));
+    }
+    const bool below = spec->lower_open ? value <= spec->lower : value < spec->lower;
+    if (below || value > spec->upper) {
+      throw ParameterError(fmt::format("{}: parameter '{}' = {} is out of range; must be in {}{}, {}]",
+                                       source, name, value, spec->lower_open ? "(" : "[",
+                                       spec->lower, spec->upper));
+    }
+  }
+  for (const auto& spec : specs) {
+    if (!values.contains(spec.name)) {
+      throw ParameterError(
+          fmt::format("{}: missing parameter '{}' ({})", source, spec.name, spec.description));
+    }
+  }
+}
+
+ParameterValues LoadParameterFile(const std::filesystem::path& path,
+                                  const std::vector<ParameterSpec>& specs) {
+  const std::string source = path.string();
+  std::ifstream in(path);
+  if (!in) throw ParameterError(fmt::format("{}: cannot open parameter file", source));
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw ParameterError(fmt::format("{}: invalid JSON: {}", source, e.what()));
+  }
+  if (!doc.is_object()) {
+    throw ParameterError(fmt::format("{}: expected a JSON object of name -> number", source));
+  }
+  ParameterValues values;
+  for (const auto& [key, value] : doc.items()) {
+    if (!value.is_number()) {
+      throw ParameterError(
+          fmt::format("{}: parameter '{}' must be a number, found {}", source, key, value.dump()));
+    }
+    values[key] = value.get<double>();
+  }
+  ValidateParameters(values, specs, source);
+  return values;
+}
+
+void SaveParameterFile(const std::filesystem::path& path, const ParameterValues& values) {
+  nlohmann::json doc = nlohmann::json::object();
+  for (const auto& [name, value] : values) doc[name] = value;
+  std::ofstream out(path);
+  if (!out) throw ParameterError(fmt::format("{}: cannot write parameter file", path.string()));
+  // dump() prints doubles with round-trip precision.
+  out << doc.dump(2) << '\n';
+  if (!out) throw ParameterError(fmt::format("{}: write failed", path.string()));
+}
+
+ModelParameters ModelParameters::FromValues(const ParameterValues& values) {
+  ModelParameters p;
+  p.k_distance = values.at("k_D");
+  p.k_damping = values.at("k_d");
+  p.k_area = values.at("k_A");
+  p.k_angle = values.at("k_phi");
+  p.mass = values.at("mass");
+  p.translation = values.at("tau");
+  return p;
+}
+
+ParameterValues ModelParameters::ToValues() const {
+  return {{"k_D", k_distance}, {"k_d", k_damping}, {"k_A", k_area},
+          {"k_phi", k_angle},  {"mass", mass},     {"tau", translation}};
+}
+
+}  // namespace calib

@@ -1,0 +1,182 @@
+#include "calib/core/simulator.h"
+
+#include "calib/core/constraints.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+
+namespace calib {
+
+bool SimulationOptions::IsValid(std::string* error) const {
+  auto fail = [&](std::string message) {
+    if (error != nullptr) *error = std::move(message);
+    return false;
+  };
+  if (substeps < 1) {
+    return fail(fmt::format("SimulationOptions::substeps = {}. Violated: substeps >= 1.", substeps));
+  }
+  if (constraint_iterations < 1) {
+    return fail(fmt::format(
+        "SimulationOptions::constraint_iterations = {}. Violated: constraint_iterations >= 1.",
+        constraint_iterations));
+  }
+  if (!(min_area_fraction > 0.0 && min_area_fraction < 1.0)) {
+    return fail(fmt::format(
+        "SimulationOptions::min_area_fraction = {}. Violated: 0 < min_area_fraction < 1.",
+        min_area_fraction));
+  }
+  if (!(divergence_diameters > 0.0)) {
+    return fail(fmt::format(
+        "SimulationOptions::divergence_diameters = {}. Violated: divergence_diameters > 0.",
+        divergence_diameters));
+  }
+  return true;
+}
+
+Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options)
+    : mesh_(mesh),
+      scene_(scene),
+      options_(options),
+      model_(mesh),
+      clamped_(mesh.NumNodes(), 0),
+      inverse_weight_(mesh.NumNodes(), 1.0),
+      x_(mesh.rest_positions),
+      x_prev_(mesh.rest_positions),
+      v_(mesh.NumNodes(), Vec2::Zero()),
+      f_(mesh.NumNodes(), Vec2::Zero()),
+      discs_(scene.num_obstacles) {
+  Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    const Vec2& p = mesh.rest_positions[i];
+    for (const RectPx& clamp : scene.clamps) {
+      if (clamp.Contains(p)) {
+        clamped_[i] = 1;
+        inverse_weight_[i] = 0.0;
+      }
+    }
+    rest_centroid_ += p;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  if (mesh.NumNodes() > 0) rest_centroid_ /= mesh.NumNodes();
+  const double radius = options.divergence_diameters * std::max((hi - lo).norm(), 1.0);
+  divergence_radius_sq_ = radius * radius;
+}
+
+void Simulator::Reset(const ModelParameters& params) {
+  params_ = params;
+  std::copy(mesh_.rest_positions.begin(), mesh_.rest_positions.end(), x_.begin());
+  std::copy(mesh_.rest_positions.begin(), mesh_.rest_positions.end(), x_prev_.begin());
+  for (Vec2& v : v_) v.setZero();
+  frame_ = 0;
+  status_ = scene_.num_frames > 1 ? SimulationStatus::kRunning : SimulationStatus::kFinished;
+  failure_reason_.clear();
+  InterpolateObstacles(0.0);
+}
+
+void Simulator::InterpolateObstacles(double alpha) {
+  if (scene_.num_obstacles == 0) return;
+  const Disc* from = scene_.ObstaclesAt(frame_);
+  const Disc* to = scene_.ObstaclesAt(std::min(frame_ + 1, scene_.num_frames - 1));
+  for (int k = 0; k < scene_.num_obstacles; ++k) {
+    discs_[k].centre = (1.0 - alpha) * from[k].centre + alpha * to[k].centre;
+    discs_[k].radius_px = (1.0 - alpha) * from[k].radius_px + alpha * to[k].radius_px;
+  }
+}
+
+void Simulator::Fail(std::string reason) {
+  status_ = SimulationStatus::kFailed;
+  failure_reason_ = std::move(reason);
+}
+
+bool Simulator::Substep(int substep) {
+  if (status_ != SimulationStatus::kRunning) return false;
+  const int n = mesh_.NumNodes();
+  const double h = scene_.frame_time_s / options_.substeps;
+  const double alpha0 = static_cast<double>(substep) / options_.substeps;
+
+  model_.ComputeForces(params_, x_, v_, f_);
+
+  // The measured push: on the node nearest the force obstacle, except the
+  // share tau ("translation") spread evenly over all nodes.
+  if (scene_.force_obstacle >= 0 && !scene_.forces.empty()) {
+    const Vec2 push = (1.0 - alpha0) * scene_.forces[frame_] +
+                      alpha0 * scene_.forces[std::min(frame_ + 1, scene_.num_frames - 1)];
+    const Vec2 centre = discs_[scene_.force_obstacle].centre;
+    int nearest = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < n; ++i) {
+      const double d = (x_[i] - centre).squaredNorm();
+      if (d < best) {
+        best = d;
+        nearest = i;
+      }
+    }
+    const Vec2 spread = (params_.translation / n) * push;
+    for (Vec2& f : f_) f += spread;
+    f_[nearest] += (1.0 - params_.translation) * push;
+  }
+
+  if (options_.integrator == IntegratorKind::kFirstOrder) {
+    std::copy(x_.begin(), x_.end(), x_prev_.begin());
+    StepFirstOrder(h / params_.mass, f_, inverse_weight_, x_);
+  } else {
+    StepVerlet(h * h / params_.mass, f_, inverse_weight_, x_, x_prev_);
+  }
+
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(x_[i].x()) || !std::isfinite(x_[i].y())) {
+      Fail(fmt::format("node {} position is not finite (substep {})", i, substep));
+      return false;
+    }
+  }
+
+  InterpolateObstacles(static_cast<double>(substep + 1) / options_.substeps);
+  if (!ApplyConstraints()) return false;
+
+  const double inv_h = 1.0 / h;
+  for (int i = 0; i < n; ++i) v_[i] = (x_[i] - x_prev_[i]) * inv_h;
+  return true;
+}
+
+bool Simulator::ApplyConstraints() {
+  for (int iter = 0; iter < options_.constraint_iterations; ++iter) {
+    const int moved = ProjectOutOfDiscs(discs_, inverse_weight_, x_);
+    const int repaired =
+        RepairInvertedTriangles(mesh_, options_.min_area_fraction, inverse_weight_, x_);
+    if (moved == 0 && repaired == 0) break;
+  }
+  for (int i = 0; i < mesh_.NumNodes(); ++i) {
+    if (clamped_[i]) x_[i] = mesh_.rest_positions[i];
+  }
+  // Constraints that could not be met end the candidate.
+  if (const int t = FindInvertedTriangle(mesh_, x_); t >= 0) {
+    Fail(fmt::format("triangle {} stays inverted after {} constraint iterations", t,
+                     options_.constraint_iterations));
+    return false;
+  }
+  if (const int i = FindNodeInsideDisc(discs_, x_, 1e-6); i >= 0) {
+    Fail(fmt::format("node {} stays inside an obstacle after {} constraint iterations", i,
+                     options_.constraint_iterations));
+    return false;
+  }
+  return true;
+}
+
+bool Simulator::FinishFrame() {
+  for (int i = 0; i < mesh_.NumNodes(); ++i) {
+    const Vec2& p = x_[i];
+    if ((p - rest_centroid_).squaredNorm() > divergence_radius_sq_) {
+      Fail(fmt::format("node {} left the scene ({:.1f} px from the rest centroid): the state diverged",
+                       i, (p - rest_centroid_).norm()));
+      return false;
+    }
+  }
+  ++frame_;
+  if (frame_ + 1 >= scene_.num_frames) status_ = SimulationStatus::kFinished;
+  return true;
+}
+
+}  // namespace calib

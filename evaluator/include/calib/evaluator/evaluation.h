@@ -1,0 +1,124 @@
+#pragma once
+// Scoring a candidate: simulate the whole recording with one parameter set
+// and compare the rasterised mesh with the segmented object in every frame.
+//
+// PrepareRecording does everything that does not depend on the candidate
+// once (segmentation, mesh, scene); an Evaluator holds one thread's
+// preallocated simulation and rasterisation buffers and evaluates candidates
+// without allocating per frame.
+
+#include "calib/core/mesher.h"
+#include "calib/core/simulator.h"
+#include "calib/evaluator/bit_mask.h"
+#include "calib/evaluator/rasterizer.h"
+#include "calib/evaluator/recording.h"
+#include "calib/evaluator/scoring.h"
+#include "calib/evaluator/segmentation.h"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace calib {
+
+struct PreparationOptions {
+  SegmentationOptions segmentation;
+  MesherOptions mesher;
+  /// Tolerance of the outline simplification (cv::approxPolyDP), pixels.
+  double outline_tolerance_px = 1.5;
+  /// Where segmentations are cached; empty: no disk cache.
+  std::filesystem::path cache_dir = DefaultSegmentationCacheDir();
+
+  bool IsValid(std::string* error) const;
+};
+
+/// What a recording gives every candidate, computed once.
+struct PreparedRecording {
+  Recording recording;
+  std::vector<BitMask> object_masks;  ///< one per frame, over the roi
+  std::vector<Vec2> outline;          ///< frame-0 object outline, pixels
+  Mesh mesh;                          ///< rest shape = frame-0 object
+  MeshQuality mesh_quality;
+  Scene scene;
+};
+
+/// The scene (obstacles, push, clamps, frame time) of a recording.
+Scene BuildScene(const Recording& recording);
+
+/// Segments (or reads the cached segmentation of) every frame, meshes the
+/// frame-0 object and builds the scene. Throws RecordingError for an
+/// unreadable video, std::invalid_argument when no object can be meshed.
+PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options);
+
+enum class EvaluationStatus { kOk, kFailed };
+std::string ToString(EvaluationStatus status);
+
+struct EvaluationResult {
+  EvaluationStatus status = EvaluationStatus::kFailed;
+  std::string failure_reason;  ///< empty when kOk
+  int failure_frame = -1;      ///< first frame that could not be simulated
+  /// Per-frame comparison for every frame simulated (all of them when kOk;
+  /// frames [0, failure_frame) when kFailed).
+  std::vector<FrameScore> frames;
+  int num_frames = 0;     ///< frames in the recording
+  int64_t xor_sum = 0;    ///< the score: XOR pixels summed over `frames`
+  double mean_iou = 0.0;  ///< over `frames`
+
+  bool ok() const { return status == EvaluationStatus::kOk; }
+};
+
+class Evaluator {
+ public:
+  /// `prepared` must outlive the evaluator; `options` must be valid.
+  Evaluator(const PreparedRecording& prepared, const SimulationOptions& options);
+
+  /// Simulates the whole recording with `params` and scores every frame.
+  /// Never throws for a candidate that blows up: that is a kFailed result.
+  EvaluationResult Evaluate(const ModelParameters& params) {
+    return Evaluate(params, [](int, const Simulator&, const BitMask&, const FrameScore&) {});
+  }
+
+  /// As above, calling on_frame(frame, simulator, mesh_mask, score) after
+  /// each frame is scored (for overlays and reports).
+  template <class OnFrame>
+  EvaluationResult Evaluate(const ModelParameters& params, OnFrame&& on_frame);
+
+  const Simulator& simulator() const { return simulator_; }
+
+ private:
+  FrameScore ScoreFrame(int frame);
+
+  const PreparedRecording& prepared_;
+  Simulator simulator_;
+  Rasterizer rasterizer_;
+  BitMask mesh_mask_;
+};
+
+template <class OnFrame>
+EvaluationResult Evaluator::Evaluate(const ModelParameters& params, OnFrame&& on_frame) {
+  EvaluationResult result;
+  const int num_frames = prepared_.scene.num_frames;
+  result.num_frames = num_frames;
+  result.frames.reserve(num_frames);
+  simulator_.Reset(params);
+  double iou_sum = 0.0;
+  for (int frame = 0; frame < num_frames; ++frame) {
+    if (frame > 0 && !simulator_.Advance()) break;
+    const FrameScore score = ScoreFrame(frame);
+    result.frames.push_back(score);
+    result.xor_sum += score.xor_px;
+    iou_sum += score.iou;
+    on_frame(frame, simulator_, mesh_mask_, score);
+  }
+  if (simulator_.status() == SimulationStatus::kFailed) {
+    result.status = EvaluationStatus::kFailed;
+    result.failure_reason = simulator_.failure_reason();
+    result.failure_frame = simulator_.failure_frame();
+  } else {
+    result.status = EvaluationStatus::kOk;
+  }
+  if (!result.frames.empty()) result.mean_iou = iou_sum / result.frames.size();
+  return result;
+}
+
+}  // namespace calib

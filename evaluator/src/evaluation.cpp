@@ -1,0 +1,76 @@
+#include "calib/evaluator/evaluation.h"
+
+#include "calib/evaluator/contour.h"
+
+#include <fmt/format.h>
+
+#include <stdexcept>
+
+namespace calib {
+
+bool PreparationOptions::IsValid(std::string* error) const {
+  if (!segmentation.IsValid(error) || !mesher.IsValid(error)) return false;
+  if (!(outline_tolerance_px >= 0.0)) {
+    if (error != nullptr) {
+      *error = fmt::format(
+          "PreparationOptions::outline_tolerance_px = {}. Violated: outline_tolerance_px >= 0.",
+          outline_tolerance_px);
+    }
+    return false;
+  }
+  return true;
+}
+
+Scene BuildScene(const Recording& recording) {
+  Scene scene;
+  scene.frame_time_s = 1.0 / recording.fps;
+  scene.num_frames = recording.num_frames;
+  scene.num_obstacles = static_cast<int>(recording.obstacles.size());
+  scene.obstacle_discs.reserve(static_cast<size_t>(scene.num_frames) * scene.num_obstacles);
+  for (int f = 0; f < scene.num_frames; ++f) {
+    for (const ObstacleTrack& track : recording.obstacles) {
+      scene.obstacle_discs.push_back(track.discs[f]);
+    }
+  }
+  scene.force_obstacle = recording.ForceObstacleIndex();
+  if (scene.force_obstacle >= 0) scene.forces = recording.forces;
+  for (const PixelRect& c : recording.clamps) {
+    scene.clamps.push_back({static_cast<double>(c.x), static_cast<double>(c.y),
+                            static_cast<double>(c.width), static_cast<double>(c.height)});
+  }
+  return scene;
+}
+
+PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  PreparedRecording prepared;
+  prepared.recording = recording;
+  prepared.object_masks = SegmentRecording(recording, options.segmentation, options.cache_dir);
+  if (prepared.object_masks.empty() || prepared.object_masks[0].Count() == 0) {
+    throw std::invalid_argument(fmt::format(
+        "{}: no object found in frame 0 with the HSV range of recording.json (object.color_hsv_*)",
+        recording.video_path.string()));
+  }
+  prepared.outline = ObjectOutline(prepared.object_masks[0], options.outline_tolerance_px);
+  prepared.mesh = MeshPolygon(prepared.outline, options.mesher);
+  prepared.mesh_quality = MeasureQuality(prepared.mesh);
+  prepared.scene = BuildScene(recording);
+  return prepared;
+}
+
+std::string ToString(EvaluationStatus status) {
+  return status == EvaluationStatus::kOk ? "ok" : "failed";
+}
+
+Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions& options)
+    : prepared_(prepared),
+      simulator_(prepared.mesh, prepared.scene, options),
+      mesh_mask_(prepared.object_masks.at(0)) {}
+
+FrameScore Evaluator::ScoreFrame(int frame) {
+  rasterizer_.RasterizeMesh(prepared_.mesh, simulator_.positions(), mesh_mask_);
+  return CompareMasks(prepared_.object_masks[frame], mesh_mask_);
+}
+
+}  // namespace calib

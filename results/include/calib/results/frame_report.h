@@ -1,0 +1,19 @@
+#pragma once
+// The per-frame report of one evaluation as CSV: one row per video frame.
+//
+// Columns: frame, xor, missed, extra, iou, status, reason. `status` is "ok"
+// for a scored frame, "failed" for the frame at which the simulation failed
+// (with the reason) and "not_simulated" for the frames after it.
+
+#include "calib/evaluator/evaluation.h"
+
+#include <filesystem>
+
+namespace calib {
+
+/// Writes the report of `result` over `num_frames` frames. Throws
+/// std::runtime_error naming the path when it cannot be written.
+void WriteFrameReportCsv(const std::filesystem::path& path, const EvaluationResult& result,
+                         int num_frames);
+
+}  // namespace calib

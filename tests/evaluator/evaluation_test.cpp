@@ -1,0 +1,109 @@
+// Evaluating candidates on the reference scene: the score is the sum of the
+// per-frame XOR, identical input gives bit-identical results, a blow-up is a
+// failed result with its reason and frame (never an exception), and the
+// scene is built from the recording as the spec says.
+
+#include "calib/evaluator/evaluation.h"
+
+#include "reference_scene.h"
+
+#include <gtest/gtest.h>
+
+namespace calib {
+namespace {
+
+const PreparedRecording& Reference() {
+  static const PreparedRecording prepared = [] {
+    bench::ReferenceSceneOptions options;
+    options.num_frames = 60;
+    return bench::MakeReferenceScene(options);
+  }();
+  return prepared;
+}
+
+TEST(Evaluator, RestShapeMatchesItsOwnMaskInFrameZero) {
+  Evaluator evaluator(Reference(), {});
+  const EvaluationResult result = evaluator.Evaluate(bench::ReferenceParameters());
+  ASSERT_TRUE(result.ok()) << result.failure_reason;
+  ASSERT_EQ(result.frames.size(), 60u);
+  EXPECT_EQ(result.frames[0].xor_px, 0);
+  EXPECT_DOUBLE_EQ(result.frames[0].iou, 1.0);
+  // The finger dents the mesh later on, so later frames disagree with the
+  // (static) object mask.
+  EXPECT_GT(result.frames.back().xor_px, 0);
+}
+
+TEST(Evaluator, ScoreIsTheSumOfPerFrameXor) {
+  Evaluator evaluator(Reference(), {});
+  const EvaluationResult result = evaluator.Evaluate(bench::ReferenceParameters());
+  int64_t sum = 0;
+  double iou = 0.0;
+  for (const FrameScore& f : result.frames) {
+    sum += f.xor_px;
+    iou += f.iou;
+    EXPECT_EQ(f.xor_px, f.missed_px + f.extra_px);
+    EXPECT_GE(f.iou, 0.0);
+    EXPECT_LE(f.iou, 1.0);
+  }
+  EXPECT_EQ(result.xor_sum, sum);
+  EXPECT_NEAR(result.mean_iou, iou / result.frames.size(), 1e-15);
+  EXPECT_EQ(result.num_frames, 60);
+}
+
+TEST(Evaluator, IdenticalInputGivesBitIdenticalScore) {
+  Evaluator a(Reference(), {});
+  Evaluator b(Reference(), {});
+  const ModelParameters p = bench::ReferenceParameters();
+  const EvaluationResult first = a.Evaluate(p);
+  ModelParameters other = p;
+  other.k_distance *= 3.0;
+  a.Evaluate(other);  // a reused evaluator carries nothing over
+  const EvaluationResult again = a.Evaluate(p);
+  const EvaluationResult fresh = b.Evaluate(p);
+  ASSERT_EQ(first.frames.size(), again.frames.size());
+  for (size_t f = 0; f < first.frames.size(); ++f) {
+    EXPECT_EQ(first.frames[f].xor_px, again.frames[f].xor_px) << "frame " << f;
+    EXPECT_EQ(first.frames[f].xor_px, fresh.frames[f].xor_px) << "frame " << f;
+  }
+  EXPECT_EQ(first.xor_sum, again.xor_sum);
+  EXPECT_EQ(first.mean_iou, fresh.mean_iou);
+}
+
+TEST(Evaluator, BlowUpIsAFailedResultWithReasonAndFrame) {
+  Evaluator evaluator(Reference(), {});
+  ModelParameters p = bench::ReferenceParameters();
+  p.k_distance = 1e12;
+  p.mass = 1e-9;
+  EvaluationResult result;
+  ASSERT_NO_THROW(result = evaluator.Evaluate(p));
+  EXPECT_EQ(result.status, EvaluationStatus::kFailed);
+  EXPECT_FALSE(result.failure_reason.empty());
+  EXPECT_GE(result.failure_frame, 1);
+  EXPECT_EQ(static_cast<int>(result.frames.size()), result.failure_frame);
+  // The same evaluator still scores the next candidate normally.
+  EXPECT_TRUE(evaluator.Evaluate(bench::ReferenceParameters()).ok());
+}
+
+TEST(BuildScene, TakesObstaclesForceAndClampsFromTheRecording) {
+  Recording rec;
+  rec.fps = 25.0;
+  rec.num_frames = 3;
+  rec.obstacles = {{"finger", {{Vec2(1, 2), 3}, {Vec2(4, 5), 3}, {Vec2(7, 8), 3}}},
+                   {"pencil", {{Vec2(9, 9), 1}, {Vec2(9, 9), 1}, {Vec2(9, 9), 1}}}};
+  rec.force_obstacle = "pencil";
+  rec.forces = {Vec2(0, 1), Vec2(0, 2), Vec2(0, 3)};
+  rec.clamps = {{10, 20, 30, 40}};
+  const Scene scene = BuildScene(rec);
+  EXPECT_DOUBLE_EQ(scene.frame_time_s, 0.04);
+  EXPECT_EQ(scene.num_obstacles, 2);
+  EXPECT_EQ(scene.force_obstacle, 1);
+  EXPECT_EQ(scene.ObstaclesAt(1)[0].centre, Vec2(4, 5));
+  EXPECT_EQ(scene.ObstaclesAt(2)[1].centre, Vec2(9, 9));
+  ASSERT_EQ(scene.forces.size(), 3u);
+  ASSERT_EQ(scene.clamps.size(), 1u);
+  EXPECT_TRUE(scene.clamps[0].Contains(Vec2(25, 45)));
+  EXPECT_FALSE(scene.clamps[0].Contains(Vec2(5, 45)));
+}
+
+}  // namespace
+}  // namespace calib

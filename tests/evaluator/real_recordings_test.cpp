@@ -1,0 +1,133 @@
+// Tests on the real recordings in shared/data/real (read in place, never
+// copied). Skipped where that folder is absent.
+
+#include "calib/evaluator/bit_mask.h"
+#include "calib/evaluator/recording.h"
+#include "calib/evaluator/segmentation.h"
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::vector<std::string> kRealRecordings = {"concave_1", "concave_2", "concave_3",
+                                                  "concave_4"};
+
+fs::path RealRecordingDir(const std::string& name) { return testing::RealRecordingsDir() / name; }
+
+// ===========================================================================
+// Loading and segmentation.
+
+struct Segmented {
+  Recording recording;
+  std::vector<BitMask> masks;
+};
+
+/// The loaded and segmented recording (default options, no disk cache),
+/// computed once per process and shared by the tests below, which only read
+/// it.
+const Segmented& LoadAndSegment(const std::string& name) {
+  static std::map<std::string, Segmented> done;
+  auto it = done.find(name);
+  if (it == done.end()) {
+    Segmented s;
+    s.recording = LoadRecording(RealRecordingDir(name));
+    s.masks = SegmentRecording(s.recording, SegmentationOptions(), {});
+    it = done.emplace(name, std::move(s)).first;
+  }
+  return it->second;
+}
+
+class RealRecording : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(RealRecordingDir(GetParam()) / "recording.json")) {
+      GTEST_SKIP() << "no real recording at " << RealRecordingDir(GetParam());
+    }
+  }
+};
+
+TEST_P(RealRecording, LoadsAndSegmentsEveryFrame) {
+  const Segmented& s = LoadAndSegment(GetParam());
+  const Recording& rec = s.recording;
+  EXPECT_GT(rec.num_frames, 1000);
+  EXPECT_EQ(rec.frame_width, 640);
+  EXPECT_EQ(rec.frame_height, 360);
+  EXPECT_TRUE(rec.obstacles.empty());
+  EXPECT_FALSE(rec.force_obstacle.has_value());
+  ASSERT_EQ(rec.clamps.size(), 1u);
+  ASSERT_EQ(s.masks.size(), static_cast<size_t>(rec.num_frames));
+  for (const BitMask& m : s.masks) {
+    ASSERT_EQ(m.width(), rec.roi.width);
+    ASSERT_EQ(m.height(), rec.roi.height);
+    ASSERT_EQ(m.origin_x(), rec.roi.x);
+    ASSERT_EQ(m.origin_y(), rec.roi.y);
+  }
+}
+
+// The projected area of the strip is not constant: in the first swings it
+// bends out of the image plane and its area reaches up to ~13% above the
+// median (concave_2, frame 7; the segmented outline follows the object's
+// edge there). So the tight bound (6% of the median) holds once the swing has
+// decayed, after the first quarter of the frames; every frame must still be
+// within 20% (no lost or merged object), and no frame may jump by more than
+// 4% of the median from the previous one (no single-frame dropouts).
+TEST_P(RealRecording, MaskAreaIsSteady) {
+  const Segmented& s = LoadAndSegment(GetParam());
+  std::vector<int64_t> areas;
+  for (const BitMask& m : s.masks) areas.push_back(m.Count());
+  ASSERT_GT(areas.size(), 4u);
+  std::vector<int64_t> sorted = areas;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double median = static_cast<double>(sorted[sorted.size() / 2]);
+  const double roi_area = static_cast<double>(s.recording.roi.width) * s.recording.roi.height;
+  ASSERT_GT(median, 0.01 * roi_area) << "object too small: median area " << median;
+  ASSERT_LT(median, 0.5 * roi_area) << "object too large: median area " << median;
+
+  const size_t settled = areas.size() / 4;
+  for (size_t f = 0; f < areas.size(); ++f) {
+    const double deviation = std::abs(areas[f] - median) / median;
+    const double bound = f >= settled ? 0.06 : 0.20;
+    EXPECT_LE(deviation, bound) << "frame " << f << " area " << areas[f] << " vs median " << median;
+    if (f > 0) {
+      const double step = std::abs(areas[f] - areas[f - 1]) / median;
+      EXPECT_LE(step, 0.04) << "frame " << f << " area " << areas[f] << " after " << areas[f - 1];
+    }
+  }
+}
+
+TEST_P(RealRecording, ClampOverlapsFirstFrameObject) {
+  const Segmented& s = LoadAndSegment(GetParam());
+  ASSERT_FALSE(s.masks.empty());
+  const BitMask& m = s.masks.front();
+  int64_t overlap = 0;
+  for (const PixelRect& clamp : s.recording.clamps) {
+    for (int y = clamp.y; y < clamp.y + clamp.height; ++y) {
+      for (int x = clamp.x; x < clamp.x + clamp.width; ++x) {
+        const int mx = x - m.origin_x(), my = y - m.origin_y();
+        if (mx >= 0 && my >= 0 && mx < m.width() && my < m.height() && m.Get(mx, my)) ++overlap;
+      }
+    }
+  }
+  EXPECT_GT(overlap, 0) << "no frame-0 object pixel inside the clamp";
+}
+
+INSTANTIATE_TEST_SUITE_P(Real, RealRecording, ::testing::ValuesIn(kRealRecordings),
+                         [](const auto& info) { return info.param; });
+
+// ===========================================================================
+// Meshing the real recordings: tests added here later, independent of the
+// section above.
+
+}  // namespace
+}  // namespace calib

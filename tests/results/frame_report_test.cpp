@@ -1,0 +1,81 @@
+// The per-frame CSV: one row per frame, failure and not-simulated frames
+// marked, and a reason holding separators and quotes read back intact by a
+// CSV parser (libcsv).
+
+#include "calib/results/frame_report.h"
+
+#include "support/test_support.h"
+
+#include <csv.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace calib {
+namespace {
+
+using Rows = std::vector<std::vector<std::string>>;
+
+Rows ParseCsv(const std::string& text) {
+  struct State {
+    Rows rows;
+    std::vector<std::string> row;
+  } state;
+  csv_parser parser;
+  csv_init(&parser, CSV_STRICT | CSV_APPEND_NULL);
+  const auto on_field = [](void* data, size_t, void* out) {
+    static_cast<State*>(out)->row.emplace_back(static_cast<const char*>(data));
+  };
+  const auto on_row = [](int, void* out) {
+    auto* s = static_cast<State*>(out);
+    s->rows.push_back(std::move(s->row));
+    s->row.clear();
+  };
+  EXPECT_EQ(csv_parse(&parser, text.data(), text.size(), on_field, on_row, &state), text.size());
+  csv_fini(&parser, on_field, on_row, &state);
+  csv_free(&parser);
+  return state.rows;
+}
+
+TEST(FrameReport, MarksFailedAndUnsimulatedFramesAndKeepsTheReasonIntact) {
+  EvaluationResult result;
+  result.status = EvaluationStatus::kFailed;
+  result.num_frames = 5;
+  result.failure_frame = 2;
+  result.failure_reason = R"(node 3 left the scene ("12.5, 7" px), diverged)";
+  result.frames = {FrameScore{}, FrameScore{}};
+  result.frames[1].xor_px = 17;
+  result.frames[1].missed_px = 10;
+  result.frames[1].extra_px = 7;
+  result.frames[1].iou = 0.875;
+  const auto path = testing::ScratchDir("report") / "frames.csv";
+  WriteFrameReportCsv(path, result, 5);
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  const Rows rows = ParseCsv(text.str());
+  ASSERT_EQ(rows.size(), 6u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"frame", "xor", "missed", "extra", "iou", "status",
+                                               "reason"}));
+  EXPECT_EQ(rows[2], (std::vector<std::string>{"1", "17", "10", "7", "0.875000", "ok", ""}));
+  EXPECT_EQ(rows[3][5], "failed");
+  EXPECT_EQ(rows[3][6], result.failure_reason);
+  EXPECT_EQ(rows[4][5], "not_simulated");
+  EXPECT_EQ(rows[5][0], "4");
+}
+
+TEST(FrameReport, UnwritablePathIsNamed) {
+  EvaluationResult result;
+  try {
+    WriteFrameReportCsv("/nonexistent-dir/frames.csv", result, 1);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent-dir/frames.csv"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace calib

@@ -1,0 +1,55 @@
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <unistd.h>
+
+namespace calib::testing {
+
+std::filesystem::path SharedDir() {
+  if (const char* env = std::getenv("CALIB_SHARED_DIR"); env != nullptr && *env != '\0') {
+    return env;
+  }
+  return std::filesystem::path(CALIB_SOURCE_DIR) / ".." / "shared";
+}
+
+std::filesystem::path RealRecordingsDir() { return SharedDir() / "data" / "real"; }
+
+std::filesystem::path ScratchDir(const std::string& name) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string id = name;
+  if (info != nullptr) id += std::string("_") + info->test_suite_name() + "_" + info->name();
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("calib_test_" + std::to_string(::getpid()) + "_" + id);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+}  // namespace calib::testing
+
+namespace calib::testing {
+
+Mesh MakeGridMesh(int nx, int ny, double spacing, const Vec2& origin) {
+  std::vector<Vec2> positions;
+  for (int j = 0; j <= ny; ++j) {
+    for (int i = 0; i <= nx; ++i) positions.push_back(origin + spacing * Vec2(i, j));
+  }
+  auto id = [nx](int i, int j) { return j * (nx + 1) + i; };
+  std::vector<std::array<int, 3>> triangles;
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      if ((i + j) % 2 == 0) {
+        triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+        triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+      } else {
+        triangles.push_back({id(i, j), id(i + 1, j), id(i, j + 1)});
+        triangles.push_back({id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)});
+      }
+    }
+  }
+  return BuildMesh(std::move(positions), std::move(triangles));
+}
+
+}  // namespace calib::testing

@@ -1,0 +1,29 @@
+#pragma once
+// Helpers shared by the tests: where ../shared is, and a scratch folder.
+
+#include <filesystem>
+#include <string>
+
+namespace calib::testing {
+
+/// The shared/ folder beside the repository (CALIB_SHARED_DIR, set by ctest).
+std::filesystem::path SharedDir();
+
+/// The real recordings folder, shared/data/real.
+std::filesystem::path RealRecordingsDir();
+
+/// A fresh, empty folder for this test under the system temp folder.
+std::filesystem::path ScratchDir(const std::string& name);
+
+}  // namespace calib::testing
+
+#include "calib/core/mesh.h"
+
+namespace calib::testing {
+
+/// A rectangular patch of nx x ny lattice cells of `spacing` px with its
+/// top-left corner at `origin`, each cell split into two triangles along
+/// alternating diagonals (a symmetric pattern).
+Mesh MakeGridMesh(int nx, int ny, double spacing, const Vec2& origin = Vec2::Zero());
+
+}  // namespace calib::testing
