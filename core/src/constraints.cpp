@@ -8,11 +8,14 @@ int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inver
                       std::span<Vec2> x) {
   int moved = 0;
   for (const Disc& disc : discs) {
-    const double r_sq = disc.radius_px * disc.radius_px;
+    // A node projected onto the circle may land a rounding error inside it;
+    // that counts as on the boundary.
+    const double inner = disc.radius_px * (1.0 - 1e-12);
+    const double inner_sq = inner * inner;
     for (size_t i = 0; i < x.size(); ++i) {
       const Vec2 d = x[i] - disc.centre;
       const double dist_sq = d.squaredNorm();
-      if (dist_sq >= r_sq || inverse_weight[i] == 0.0) continue;
+      if (dist_sq >= inner_sq || inverse_weight[i] == 0.0) continue;
       const double dist = std::sqrt(dist_sq);
       x[i] = dist > 0.0 ? Vec2(disc.centre + d * (disc.radius_px / dist))
                         : Vec2(disc.centre + Vec2(disc.radius_px, 0.0));

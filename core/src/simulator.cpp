@@ -40,6 +40,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       scene_(scene),
       options_(options),
       model_(mesh),
+      force_workspace_(model_.MakeWorkspace()),
       clamped_(mesh.NumNodes(), 0),
       inverse_weight_(mesh.NumNodes(), 1.0),
       x_(mesh.rest_positions),
@@ -97,7 +98,7 @@ bool Simulator::Substep(int substep) {
   const double h = scene_.frame_time_s / options_.substeps;
   const double alpha0 = static_cast<double>(substep) / options_.substeps;
 
-  model_.ComputeForces(params_, x_, v_, f_);
+  model_.ComputeForces(params_, x_, v_, f_, force_workspace_);
 
   // The measured push: on the node nearest the force obstacle, except the
   // share tau ("translation") spread evenly over all nodes.
@@ -142,16 +143,16 @@ bool Simulator::Substep(int substep) {
 }
 
 bool Simulator::ApplyConstraints() {
+  // Clamped nodes have inverse weight 0: the integrator and the projections
+  // never move them, so they stay at their rest positions.
   for (int iter = 0; iter < options_.constraint_iterations; ++iter) {
     const int moved = ProjectOutOfDiscs(discs_, inverse_weight_, x_);
     const int repaired =
         RepairInvertedTriangles(mesh_, options_.min_area_fraction, inverse_weight_, x_);
-    if (moved == 0 && repaired == 0) break;
+    // A round that moved nothing found every constraint met.
+    if (moved == 0 && repaired == 0) return true;
   }
-  for (int i = 0; i < mesh_.NumNodes(); ++i) {
-    if (clamped_[i]) x_[i] = mesh_.rest_positions[i];
-  }
-  // Constraints that could not be met end the candidate.
+  // Out of rounds: constraints that are still not met end the candidate.
   if (const int t = FindInvertedTriangle(mesh_, x_); t >= 0) {
     Fail(fmt::format("triangle {} stays inverted after {} constraint iterations", t,
                      options_.constraint_iterations));

@@ -49,15 +49,36 @@ void PaintMasks(const BitMask& object, const BitMask& mesh, cv::Mat& tile, Colou
   }
 }
 
-void PutLabel(cv::Mat& tile, const std::string& text, double font_scale) {
+// One line of text: coloured words with a dark outline, legible on any
+// background. Returns the x after the text.
+struct Word {
+  std::string text;
+  cv::Scalar colour;
+};
+int PutWords(cv::Mat& tile, const std::vector<Word>& words, cv::Point at, double font_scale) {
+  for (const Word& w : words) {
+    cv::putText(tile, w.text, at, cv::FONT_HERSHEY_SIMPLEX, font_scale, cv::Scalar(0, 0, 0), 3,
+                cv::LINE_AA);
+    cv::putText(tile, w.text, at, cv::FONT_HERSHEY_SIMPLEX, font_scale, w.colour, 1,
+                cv::LINE_AA);
+    int baseline = 0;
+    at.x += cv::getTextSize(w.text + " ", cv::FONT_HERSHEY_SIMPLEX, font_scale, 1, &baseline)
+                .width;
+  }
+  return at.x;
+}
+
+// Writes `lines` (empty ones skipped) from the tile's top left.
+void PutLabel(cv::Mat& tile, const std::vector<std::vector<Word>>& lines, double font_scale) {
   int baseline = 0;
-  const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, font_scale, 1, &baseline);
-  const cv::Point at(4, 4 + size.height);
-  // A dark outline keeps the label legible on any background.
-  cv::putText(tile, text, at, cv::FONT_HERSHEY_SIMPLEX, font_scale, cv::Scalar(0, 0, 0), 3,
-              cv::LINE_AA);
-  cv::putText(tile, text, at, cv::FONT_HERSHEY_SIMPLEX, font_scale, cv::Scalar(255, 255, 255), 1,
-              cv::LINE_AA);
+  const cv::Size size = cv::getTextSize("Xg", cv::FONT_HERSHEY_SIMPLEX, font_scale, 1, &baseline);
+  int y = 4;
+  for (const std::vector<Word>& line : lines) {
+    if (line.empty()) continue;
+    y += size.height;
+    PutWords(tile, line, cv::Point(4, y), font_scale);
+    y += baseline + 2;
+  }
 }
 
 }  // namespace
@@ -138,14 +159,26 @@ cv::Mat RenderOverlay(const cv::Mat& frame_bgr, const Mesh& mesh,
     return o ? (m ? agreement : missed) : (m ? extra : black);
   });
 
-  std::string suffix;
-  if (options.frame_index >= 0) suffix += fmt::format("  frame {}", options.frame_index);
-  if (options.xor_px >= 0) suffix += fmt::format("  XOR {} px", options.xor_px);
-  if (options.iou >= 0.0) suffix += fmt::format("  IoU {:.4f}", options.iou);
-  PutLabel(video, "video + mesh" + suffix, options.font_scale);
-  PutLabel(object_tile, "object" + suffix, options.font_scale);
-  PutLabel(mesh_tile, "mesh" + suffix, options.font_scale);
-  PutLabel(diff_tile, "missed / extra" + suffix, options.font_scale);
+  std::string stats;
+  const auto append = [&stats](const std::string& item) {
+    stats += stats.empty() ? item : "  " + item;
+  };
+  if (options.frame_index >= 0) append(fmt::format("frame {}", options.frame_index));
+  if (options.xor_px >= 0) append(fmt::format("XOR {} px", options.xor_px));
+  if (options.iou >= 0.0) append(fmt::format("IoU {:.4f}", options.iou));
+  const cv::Scalar white(255, 255, 255);
+  std::vector<Word> stats_line;
+  if (!stats.empty()) stats_line.push_back({stats, white});
+  PutLabel(video, {{{"video + mesh", white}}, stats_line}, options.font_scale);
+  PutLabel(object_tile, {{{"object", white}}, stats_line}, options.font_scale);
+  PutLabel(mesh_tile, {{{"mesh", white}}, stats_line}, options.font_scale);
+  PutLabel(diff_tile,
+           {{{"difference:", white},
+             {"missed", options.missed_colour},
+             {"extra", options.extra_colour},
+             {"both", options.agreement_colour}},
+            stats_line},
+           options.font_scale);
   return panel;
 }
 

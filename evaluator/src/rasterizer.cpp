@@ -53,11 +53,12 @@ void Rasterizer::FillEdges(BitMask& mask) {
   if (row_lo_ >= row_hi_) return;
   const int num_rows = row_hi_ - row_lo_;
 
-  // Counting sort of the crossings by row. offsets has num_rows + 1 entries
-  // plus one spare: the difference pass and prefix sum leave offsets[r + 1] =
-  // number of crossings in rows < r (the start of row r); the fill pass uses
-  // offsets[r + 1] as row r's write cursor, which leaves row r's crossings in
-  // [offsets[r], offsets[r + 1]).
+  // Counting sort of the crossings by row (r counted from row_lo_), in
+  // offsets[0, num_rows + 2): the difference pass and prefix sum leave
+  // offsets[r + 1] = number of crossings in rows < r (the start of row r); the
+  // fill pass uses offsets[r + 1] as row r's write cursor, which leaves row
+  // r's crossings in [offsets[r], offsets[r + 1]).
+  //
   // Buffers are sized for the whole mask (offsets) or grown with slack
   // (crossings), so frames of a moving object do not reallocate.
   if (row_offsets_.size() < static_cast<size_t>(mask_height_) + 2) {

@@ -7,8 +7,9 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
-#include <cstdio>
+#include <cctype>
 #include <cstdlib>
+#include <optional>
 #include <stdexcept>
 
 namespace calib {
@@ -35,17 +36,42 @@ void FillHoles(cv::Mat* mask) {
   mask->setTo(255, holes);
 }
 
-/// The files the video (or image-sequence pattern) reads, in order.
+/// The name an image-sequence pattern ("frames/%06d.png": one %d, %0Nd or
+/// %Nd) gives frame `index`; nullopt when `pattern` is not of that form.
+std::optional<std::string> ExpandPattern(const std::string& pattern, int index) {
+  const auto percent = pattern.find('%');
+  if (percent == std::string::npos) return std::nullopt;
+  size_t pos = percent + 1;
+  const bool zero_pad = pos < pattern.size() && pattern[pos] == '0';
+  if (zero_pad) ++pos;
+  int width = 0;
+  while (pos < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[pos]))) {
+    width = 10 * width + (pattern[pos++] - '0');
+    if (width > 32) return std::nullopt;
+  }
+  if (pos >= pattern.size() || pattern[pos] != 'd') return std::nullopt;
+  if (pattern.find('%', pos + 1) != std::string::npos) return std::nullopt;
+  std::string number = std::to_string(index);
+  if (static_cast<int>(number.size()) < width) {
+    number.insert(0, width - number.size(), zero_pad ? '0' : ' ');
+  }
+  return pattern.substr(0, percent) + number + pattern.substr(pos + 1);
+}
+
+/// The files the video reads, in order: the file itself, or the files of an
+/// image sequence from its first index (the first of 0..1000 that exists)
+/// to the last before a gap.
 std::vector<fs::path> VideoFiles(const fs::path& video) {
-  const std::string pattern = video.string();
-  if (video.filename().string().find('%') == std::string::npos) return {video};
-  std::vector<fs::path> files;
-  char name[4096];
-  auto expand = [&](int i) {
-    std::snprintf(name, sizeof(name), pattern.c_str(), i);
-    return fs::path(name);
+  const std::string name = video.filename().string();
+  if (name.find('%') == std::string::npos) return {video};
+  const auto expand = [&](int i) {
+    const std::optional<std::string> file = ExpandPattern(name, i);
+    return file ? video.parent_path() / *file : fs::path();
   };
-  int first = fs::exists(expand(0)) ? 0 : 1;
+  if (expand(0).empty()) return {video};  // not a pattern: a file with '%' in its name
+  int first = 0;
+  while (first <= 1000 && !fs::exists(expand(first))) ++first;
+  std::vector<fs::path> files;
   for (int i = first; fs::exists(expand(i)); ++i) files.push_back(expand(i));
   return files;
 }
@@ -114,8 +140,7 @@ BitMask SegmentFrame(const cv::Mat& bgr, const HsvRange& hsv, const PixelRect& r
   if (roi.x < 0 || roi.y < 0 || roi.width <= 0 || roi.height <= 0 || roi.x + roi.width > bgr.cols ||
       roi.y + roi.height > bgr.rows) {
     throw std::invalid_argument(
-        fmt::format("SegmentFrame: roi [{}, {}, {}, {}] is not inside the "
-                    "{} x {} image",
+        fmt::format("SegmentFrame: roi [{}, {}, {}, {}] is not inside the {} x {} image",
                     roi.x, roi.y, roi.width, roi.height, bgr.cols, bgr.rows));
   }
 

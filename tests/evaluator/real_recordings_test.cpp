@@ -1,7 +1,11 @@
 // Tests on the real recordings in shared/data/real (read in place, never
 // copied). Skipped where that folder is absent.
 
+#include "calib/core/mesher.h"
+#include "calib/core/simulator.h"
 #include "calib/evaluator/bit_mask.h"
+#include "calib/evaluator/contour.h"
+#include "calib/evaluator/evaluation.h"
 #include "calib/evaluator/recording.h"
 #include "calib/evaluator/segmentation.h"
 #include "support/test_support.h"
@@ -126,8 +130,35 @@ INSTANTIATE_TEST_SUITE_P(Real, RealRecording, ::testing::ValuesIn(kRealRecording
                          [](const auto& info) { return info.param; });
 
 // ===========================================================================
-// Meshing the real recordings: tests added here later, independent of the
-// section above.
+// Meshing the real recordings: the frame-0 outline meshes into well-shaped
+// triangles covering the object, and the clamp holds some of its nodes.
+
+class RealRecordingMesh : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(RealRecordingMesh, MeshesWithClampedNodes) {
+  const Segmented& s = LoadAndSegment(GetParam());
+  ASSERT_FALSE(s.masks.empty());
+  const BitMask& first = s.masks.front();
+  MesherOptions options;
+  options.edge_length_px = 12.0;
+  const Mesh mesh = MeshPolygon(ObjectOutline(first, 1.0), options);
+  const MeshQuality q = MeasureQuality(mesh);
+  EXPECT_GE(q.min_angle_deg, 20.0) << q.BriefReport();
+  // The mesh covers the segmented object: their areas agree within the
+  // boundary band of one pixel.
+  const double object_px = static_cast<double>(first.Count());
+  EXPECT_NEAR(q.area_px2, object_px, 0.05 * object_px) << q.BriefReport();
+
+  const Scene scene = BuildScene(s.recording);
+  Simulator simulator(mesh, scene, SimulationOptions{});
+  int clamped = 0;
+  for (uint8_t c : simulator.clamped()) clamped += c;
+  EXPECT_GE(clamped, 2) << "the clamp must hold some nodes of " << GetParam();
+  EXPECT_LT(clamped, mesh.NumNodes() / 2);
+}
+
+INSTANTIATE_TEST_SUITE_P(Real, RealRecordingMesh, ::testing::ValuesIn(kRealRecordings),
+                         [](const auto& info) { return info.param; });
 
 }  // namespace
 }  // namespace calib

@@ -331,6 +331,14 @@ TEST(RecordingError, BadNumberNamesRowAndColumn) {
   EXPECT_HAS(message, "'12.5x'");
 }
 
+TEST(RecordingError, MalformedCsvNamesFileAndLine) {
+  RecordingFixture fx("rec");
+  fx.track = Replace(fx.track, "\n1,", "\n\"1,");  // a quote that never closes
+  const std::string message = fx.LoadError();
+  EXPECT_HAS(message, fx.TrackPath());
+  EXPECT_HAS(message, "CSV parse error at line");
+}
+
 TEST(RecordingError, EmptyCellNamesRowAndColumn) {
   RecordingFixture fx("rec");
   fx.track = Replace(fx.track, ",30.25,3,0.3", ",30.25,,0.3");

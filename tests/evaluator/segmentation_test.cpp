@@ -360,6 +360,21 @@ TEST(SegmentRecording, CacheKeyFollowsContentAndOptions) {
   EXPECT_EQ(CacheFiles(cache).size(), 2u);
 }
 
+TEST(SegmentRecording, CacheKeyCoversSequencesStartingAtOne) {
+  const fs::path dir = testing::ScratchDir("seg");
+  const Recording rec = WriteSequenceRecording(dir / "rec");
+  for (int i = kFrames - 1; i >= 0; --i) {  // renumber 0..4 as 1..5
+    char from[32], to[32];
+    std::snprintf(from, sizeof(from), "%06d.png", i);
+    std::snprintf(to, sizeof(to), "%06d.png", i + 1);
+    fs::rename(dir / "rec" / "frames" / from, dir / "rec" / "frames" / to);
+  }
+  const uint64_t key = SegmentationCacheKey(rec, {});
+  ASSERT_TRUE(cv::imwrite((dir / "rec" / "frames" / "000005.png").string(),
+                          cv::Mat(150, 200, CV_8UC3, kBackgroundBgr)));
+  EXPECT_NE(SegmentationCacheKey(rec, {}), key) << "the last frame is not part of the key";
+}
+
 TEST(SegmentRecording, FewerVideoFramesThanRecordingNamesBothCounts) {
   const fs::path dir = testing::ScratchDir("seg");
   Recording rec = WriteSequenceRecording(dir / "rec");

@@ -82,6 +82,7 @@ class Simulator {
   const Scene& scene_;
   SimulationOptions options_;
   Model model_;
+  ForceWorkspace force_workspace_;
   ModelParameters params_;
 
   std::vector<uint8_t> clamped_;
