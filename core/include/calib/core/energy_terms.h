@@ -68,21 +68,35 @@ namespace energy_terms_detail {
 // angle (x > 0, |y| <= x / 10: a spring near its rest angle): the series
 // z - z^3/3 + ... + z^15/15 of atan(z), z = y/x, whose first omitted term is
 // below |z|^17 / 17 < 6e-19. Other angles go to std::atan2.
+//
+// The series and its range test are separate so that the model's vectorised
+// loops can evaluate the series on every lane and send only the lanes out of
+// range to std::atan2; Atan2 is the one definition of how they combine.
+//
+// The coefficients are constexpr: the project compiles with -frounding-math,
+// under which GCC leaves an inexact constant quotient such as 1.0 / 13.0 as a
+// division at run time (seven per call). Folded at compile time they take
+// the values the run-time divisions give in the default rounding mode.
+inline bool Atan2SeriesApplies(double y, double x) { return (x > 0.0) & (std::abs(y) <= 0.1 * x); }
+
+inline double Atan2Series(double y, double x) {
+  constexpr double k3 = 1.0 / 3.0, k5 = 1.0 / 5.0, k7 = 1.0 / 7.0, k9 = 1.0 / 9.0;
+  constexpr double k11 = 1.0 / 11.0, k13 = 1.0 / 13.0, k15 = 1.0 / 15.0;
+  const double z = y / x;
+  const double z2 = z * z;
+  double s = -k15;
+  s = s * z2 + k13;
+  s = s * z2 - k11;
+  s = s * z2 + k9;
+  s = s * z2 - k7;
+  s = s * z2 + k5;
+  s = s * z2 - k3;
+  s = s * z2 + 1.0;
+  return z * s;
+}
+
 inline double Atan2(double y, double x) {
-  if (x > 0.0 && std::abs(y) <= 0.1 * x) {
-    const double z = y / x;
-    const double z2 = z * z;
-    double s = -1.0 / 15.0;
-    s = s * z2 + 1.0 / 13.0;
-    s = s * z2 - 1.0 / 11.0;
-    s = s * z2 + 1.0 / 9.0;
-    s = s * z2 - 1.0 / 7.0;
-    s = s * z2 + 1.0 / 5.0;
-    s = s * z2 - 1.0 / 3.0;
-    s = s * z2 + 1.0;
-    return z * s;
-  }
-  return std::atan2(y, x);
+  return Atan2SeriesApplies(y, x) ? Atan2Series(y, x) : std::atan2(y, x);
 }
 
 // The signed angle from e1 rotated by the rest angle (cos, sin) to e2, in

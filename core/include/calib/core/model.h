@@ -11,13 +11,38 @@
 #include "calib/core/parameters.h"
 
 #include <span>
+#include <string>
 
 namespace calib {
 
-/// Per-thread scratch of Model::ComputeForces, sized by the model.
+/// The instruction sets Model::ComputeForces has kernels for. Every kernel
+/// returns the same bits (same per-element operations in the same order, no
+/// FMA contraction, the same fixed order of the sums into the nodes); the
+/// choice changes only the speed.
+enum class ForceKernel {
+  kAuto,      ///< the fastest this CPU runs
+  kBaseline,  ///< plain x86-64 (SSE2), or whatever the build targets
+  kAvx2,      ///< AVX2, chosen at run time where the CPU has it
+};
+
+std::string ToString(ForceKernel kernel);
+
+/// Per-thread scratch of Model::ComputeForces, sized by the model: the
+/// per-edge and per-triangle results of the vectorised passes, summed into
+/// the nodes afterwards in a fixed order.
 struct ForceWorkspace {
-  std::vector<Vec2> edge_vector;          ///< p_j - p_i per edge
-  std::vector<double> edge_inv_length_sq;  ///< 1 / |p_j - p_i|^2 per edge (0 if degenerate)
+  // Per edge (#E).
+  std::vector<double> edge_force;          ///< #E x 2: force on node j (node i gets minus it)
+  std::vector<double> edge_inv_length_sq;  ///< 1 / |p_j - p_i|^2 (0 if degenerate)
+  std::vector<double> edge_energy;
+  // Per triangle (#T).
+  std::vector<double> triangle_force_a;  ///< #T x 2: force on corner a
+  std::vector<double> triangle_force_b;  ///< #T x 2
+  std::vector<double> triangle_force_c;  ///< #T x 2
+  std::vector<double> triangle_energy;
+  /// 1 where a corner angle is outside the atan series' range, so the
+  /// triangle is redone with std::atan2.
+  std::vector<int> triangle_needs_atan2;
 };
 
 class Model {
@@ -32,10 +57,11 @@ class Model {
   /// Overwrites `forces` (#N) with the internal forces at positions `x` and
   /// velocities `v` (#N each): distance, area and angle springs plus edge
   /// damping. Returns the elastic energy (damping has none). Allocates
-  /// nothing.
+  /// nothing. `kernel` picks the instruction set (tests compare them); a
+  /// kernel the CPU lacks falls back to kBaseline.
   double ComputeForces(const ModelParameters& params, std::span<const Vec2> x,
                        std::span<const Vec2> v, std::span<Vec2> forces,
-                       ForceWorkspace& workspace) const;
+                       ForceWorkspace& workspace, ForceKernel kernel = ForceKernel::kAuto) const;
 
   /// As above with a temporary workspace (tests, one-off calls).
   double ComputeForces(const ModelParameters& params, std::span<const Vec2> x,
@@ -44,19 +70,18 @@ class Model {
   /// Elastic energy at positions `x`.
   double Energy(const ModelParameters& params, std::span<const Vec2> x) const;
 
- private:
-  /// A triangle's three edges (ab, bc, ca) as edge indices, and +1 where the
-  /// stored edge (i < j) runs the triangle's way round, -1 otherwise.
-  struct TriangleEdges {
-    std::array<int, 3> edge;
-    std::array<double, 3> sign;
-  };
+  /// Whether this CPU runs `kernel` (kAuto and kBaseline: always).
+  static bool IsAvailable(ForceKernel kernel);
 
+ private:
   const Mesh* mesh_;
-  std::vector<double> inv_rest_length_;     ///< 1 / D0 per edge
-  std::vector<double> inv_rest_area_;       ///< 1 / A0 per triangle
-  std::vector<std::array<double, 6>> rest_cos_sin_;  ///< cos, sin of rest corner angles
-  std::vector<TriangleEdges> triangle_edges_;
+  // The mesh as flat arrays for the vectorised passes (force_kernels.h).
+  std::vector<int> edge_i_, edge_j_;
+  std::vector<double> rest_length_, inv_rest_length_;      ///< D0, 1 / D0 per edge
+  std::vector<int> triangle_a_, triangle_b_, triangle_c_;
+  std::vector<int> triangle_edge_ab_, triangle_edge_bc_, triangle_edge_ca_;
+  std::vector<double> rest_area_, inv_rest_area_;          ///< A0, 1 / A0 per triangle
+  std::vector<double> rest_cos_a_, rest_sin_a_, rest_cos_b_, rest_sin_b_;  ///< rest corners a, b
 };
 
 }  // namespace calib

@@ -1,0 +1,65 @@
+#pragma once
+// The passes of Model::ComputeForces over flat arrays (private to core).
+//
+// Structure, for the vectoriser: (1) one branch-free loop over the edges
+// gathers node positions and velocities and writes each edge's force and
+// energy to the workspace; (2) one over the triangles does the same for the
+// area and angle springs, with the atan series on every lane; (3) a scalar
+// pass redoes the rare triangles whose angles are outside the series' range
+// with std::atan2; (4) a sequential pass adds the per-element forces to the
+// nodes, edges then triangles, each in index order; (5) the energies are
+// summed in eight fixed interleaved partial sums.
+//
+// Every step is the same sequence of IEEE operations per element whatever
+// the vector width, and GCC vectorises floating point only where that keeps
+// the source's result (no -ffast-math; -std=c++20 means -ffp-contract=off,
+// and the AVX2 kernel is compiled without FMA), so every kernel gives the
+// same bits. tests/core/model_test.cpp checks this.
+
+#include "calib/core/model.h"
+
+namespace calib::force_kernels {
+
+/// The mesh and scratch as raw arrays; sizes num_edges / num_triangles.
+struct Arrays {
+  int num_edges = 0;
+  const int* edge_i = nullptr;
+  const int* edge_j = nullptr;
+  const double* rest_length = nullptr;
+  const double* inv_rest_length = nullptr;
+
+  int num_triangles = 0;
+  const int* triangle_a = nullptr;
+  const int* triangle_b = nullptr;
+  const int* triangle_c = nullptr;
+  const int* triangle_edge_ab = nullptr;
+  const int* triangle_edge_bc = nullptr;
+  const int* triangle_edge_ca = nullptr;
+  const double* rest_area = nullptr;
+  const double* inv_rest_area = nullptr;
+  const double* rest_cos_a = nullptr;
+  const double* rest_sin_a = nullptr;
+  const double* rest_cos_b = nullptr;
+  const double* rest_sin_b = nullptr;
+
+  ForceWorkspace* workspace = nullptr;
+};
+
+struct Stiffness {
+  double distance = 0.0;
+  double damping = 0.0;
+  double area = 0.0;
+  double angle = 0.0;
+};
+
+/// x, v: #N interleaved (x, y) pairs; forces: #N pairs, overwritten.
+/// Returns the elastic energy.
+double ComputeForcesBaseline(const Arrays& arrays, const Stiffness& k, const double* x,
+                             const double* v, double* forces);
+double ComputeForcesAvx2(const Arrays& arrays, const Stiffness& k, const double* x,
+                         const double* v, double* forces);
+
+/// Whether the CPU (and OS) run AVX2 code.
+bool CpuHasAvx2();
+
+}  // namespace calib::force_kernels

@@ -1,0 +1,189 @@
+// The model's vectorised force kernels: every instruction-set kernel gives
+// the same bits as the others and as a plain scalar loop over the mesh (the
+// model's sums before vectorisation), on small and large deformations (the
+// atan series and its std::atan2 fallback) and with a collapsed edge.
+
+#include "calib/core/energy_terms.h"
+#include "calib/core/model.h"
+
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <random>
+
+namespace calib {
+namespace {
+
+using calib::testing::MakeGridMesh;
+
+ModelParameters Stiff() {
+  ModelParameters p;
+  p.k_distance = 50.0;
+  p.k_damping = 0.5;
+  p.k_area = 20.0;
+  p.k_angle = 5.0;
+  p.mass = 0.05;
+  p.translation = 0.0;
+  return p;
+}
+
+std::vector<Vec2> Jittered(const std::vector<Vec2>& base, double amount, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<Vec2> out = base;
+  for (Vec2& p : out) {
+    // Not std::uniform_real_distribution: its output differs between
+    // standard libraries.
+    const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+    const double w = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+    p += amount * Vec2(2.0 * u - 1.0, 2.0 * w - 1.0);
+  }
+  return out;
+}
+
+// The model's sums as one scalar loop per element kind, the order of
+// operations of the vectorised kernels: edges (forces[j] += f,
+// forces[i] -= f) then triangles, in index order.
+std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& p,
+                               const std::vector<Vec2>& x, const std::vector<Vec2>& v) {
+  using energy_terms_detail::Atan2;
+  using energy_terms_detail::Wrap;
+  std::vector<Vec2> f(x.size(), Vec2::Zero());
+  std::vector<double> inv_sq(mesh.edges.size());
+  std::map<std::pair<int, int>, int> edge_index;
+  for (int e = 0; e < mesh.NumEdges(); ++e) {
+    const auto [i, j] = mesh.edges[e];
+    edge_index[{i, j}] = e;
+    const Vec2 d = x[j] - x[i];
+    const double length_sq = d.squaredNorm();
+    if (!(length_sq > 0.0)) continue;
+    const double length = std::sqrt(length_sq);
+    const double inv_length = 1.0 / length;
+    const double inv_rest = 1.0 / mesh.rest_length_px[e];
+    inv_sq[e] = inv_length * inv_length;
+    const double strain = (length - mesh.rest_length_px[e]) * inv_rest;
+    const double along = -p.k_distance * strain * inv_rest * inv_length -
+                         p.k_damping * inv_rest * inv_rest * (v[j] - v[i]).dot(d) * inv_sq[e];
+    f[j] += along * d;
+    f[i] -= along * d;
+  }
+  auto edge_of = [&](int from, int to) {
+    return edge_index.at({std::min(from, to), std::max(from, to)});
+  };
+  for (int t = 0; t < mesh.NumTriangles(); ++t) {
+    const auto [a, b, c] = mesh.triangles[t];
+    const Vec2 ab = x[b] - x[a], bc = x[c] - x[b], ca = x[a] - x[c];
+    const double inv_rest_area = 1.0 / mesh.rest_area_px2[t];
+    const double rel = (-0.5 * Cross(ab, ca) - mesh.rest_area_px2[t]) * inv_rest_area;
+    const double s = -0.5 * p.k_area * rel * inv_rest_area;
+    Vec2 f_a = s * Vec2(-bc.y(), bc.x());
+    Vec2 f_b = s * Vec2(-ca.y(), ca.x());
+    Vec2 f_c = s * Vec2(-ab.y(), ab.x());
+    const double i_ab = inv_sq[edge_of(a, b)], i_bc = inv_sq[edge_of(b, c)];
+    const double i_ca = inv_sq[edge_of(c, a)];
+    if (p.k_angle != 0.0 && i_ab > 0.0 && i_bc > 0.0 && i_ca > 0.0) {
+      const double ca0 = std::cos(mesh.rest_angle_rad[t][0]);
+      const double sa0 = std::sin(mesh.rest_angle_rad[t][0]);
+      const double cb0 = std::cos(mesh.rest_angle_rad[t][1]);
+      const double sb0 = std::sin(mesh.rest_angle_rad[t][1]);
+      const Vec2 ra(ca0 * ab.x() - sa0 * ab.y(), sa0 * ab.x() + ca0 * ab.y());
+      const Vec2 rb(cb0 * bc.x() - sb0 * bc.y(), sb0 * bc.x() + cb0 * bc.y());
+      const double d_a = Atan2(-Cross(ra, ca), -ra.dot(ca));
+      const double d_b = Atan2(-Cross(rb, ab), -rb.dot(ab));
+      const double d_c = Wrap(-(d_a + d_b));
+      const Vec2 p_ab = i_ab * Vec2(ab.y(), -ab.x());
+      const Vec2 p_bc = i_bc * Vec2(bc.y(), -bc.x());
+      const Vec2 p_ca = i_ca * Vec2(ca.y(), -ca.x());
+      const double w_a = -p.k_angle * (d_a - d_c);
+      const double w_b = -p.k_angle * (d_b - d_c);
+      f_a += (w_b - w_a) * p_ab - w_a * p_ca;
+      f_b += (w_a - w_b) * p_ab - w_b * p_bc;
+      f_c += w_a * p_ca + w_b * p_bc;
+    }
+    f[a] += f_a;
+    f[b] += f_b;
+    f[c] += f_c;
+  }
+  return f;
+}
+
+void ExpectSameBits(const std::vector<Vec2>& expected, const std::vector<Vec2>& actual,
+                    const std::string& what) {
+  ASSERT_EQ(expected.size(), actual.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    for (int d = 0; d < 2; ++d) {
+      EXPECT_EQ(std::bit_cast<uint64_t>(expected[i][d]), std::bit_cast<uint64_t>(actual[i][d]))
+          << what << ": node " << i << " component " << d << ": " << expected[i][d] << " vs "
+          << actual[i][d];
+    }
+  }
+}
+
+constexpr ForceKernel kKernels[] = {ForceKernel::kBaseline, ForceKernel::kAvx2,
+                                    ForceKernel::kAuto};
+
+// Deformations from near rest (every angle on the atan series) to large
+// (many on std::atan2, some triangles inverted).
+TEST(Model, EveryKernelGivesTheBitsOfTheScalarSums) {
+  const Mesh mesh = MakeGridMesh(13, 9, 10.0, Vec2(3, 4));
+  const Model model(mesh);
+  const ModelParameters p = Stiff();
+  ForceWorkspace ws = model.MakeWorkspace();
+  for (const double amount : {0.01, 0.3, 2.0, 6.0}) {
+    const auto x = Jittered(mesh.rest_positions, amount, 7);
+    const auto v = Jittered(std::vector<Vec2>(x.size(), Vec2::Zero()), 3.0, 8);
+    const std::vector<Vec2> expected = ScalarForces(mesh, p, x, v);
+    std::vector<Vec2> f(x.size());
+    const double baseline_energy = model.ComputeForces(p, x, v, f, ws, ForceKernel::kBaseline);
+    for (const ForceKernel kernel : kKernels) {
+      if (!Model::IsAvailable(kernel)) {
+        std::cout << "kernel " << ToString(kernel) << " not available on this CPU\n";
+        continue;
+      }
+      const std::string what = ToString(kernel) + " at jitter " + std::to_string(amount);
+      std::fill(f.begin(), f.end(), Vec2(1e300, -1e300));  // overwritten, not added to
+      const double energy = model.ComputeForces(p, x, v, f, ws, kernel);
+      ExpectSameBits(expected, f, what);
+      EXPECT_EQ(std::bit_cast<uint64_t>(energy), std::bit_cast<uint64_t>(baseline_energy))
+          << what << ": energy " << energy << " vs " << baseline_energy;
+    }
+  }
+}
+
+// A collapsed edge: its spring has no direction and its triangles no angles.
+TEST(Model, KernelsAgreeOnACollapsedEdge) {
+  const Mesh mesh = MakeGridMesh(4, 3, 10.0);
+  const Model model(mesh);
+  const ModelParameters p = Stiff();
+  auto x = Jittered(mesh.rest_positions, 1.0, 3);
+  const auto [i, j] = mesh.edges[5];
+  x[j] = x[i];
+  const auto v = Jittered(std::vector<Vec2>(x.size(), Vec2::Zero()), 1.0, 4);
+  const std::vector<Vec2> expected = ScalarForces(mesh, p, x, v);
+  ForceWorkspace ws = model.MakeWorkspace();
+  std::vector<Vec2> f(x.size());
+  const double baseline_energy = model.ComputeForces(p, x, v, f, ws, ForceKernel::kBaseline);
+  EXPECT_TRUE(std::isfinite(baseline_energy)) << baseline_energy;
+  for (const ForceKernel kernel : kKernels) {
+    if (!Model::IsAvailable(kernel)) continue;
+    const double energy = model.ComputeForces(p, x, v, f, ws, kernel);
+    ExpectSameBits(expected, f, ToString(kernel));
+    EXPECT_EQ(std::bit_cast<uint64_t>(energy), std::bit_cast<uint64_t>(baseline_energy))
+        << ToString(kernel);
+  }
+}
+
+TEST(Model, KernelNamesAndAvailability) {
+  EXPECT_EQ(ToString(ForceKernel::kAuto), "auto");
+  EXPECT_EQ(ToString(ForceKernel::kBaseline), "baseline");
+  EXPECT_EQ(ToString(ForceKernel::kAvx2), "avx2");
+  EXPECT_TRUE(Model::IsAvailable(ForceKernel::kAuto));
+  EXPECT_TRUE(Model::IsAvailable(ForceKernel::kBaseline));
+}
+
+}  // namespace
+}  // namespace calib
