@@ -1,0 +1,149 @@
+// Internal: exact JSON encodings for optimiser state, and the box mapping.
+// Doubles are stored as JSON numbers when finite (nlohmann writes 17
+// significant digits, so dump/parse round-trips bit for bit) and as the
+// strings "inf", "-inf", "nan" otherwise (JSON has no such numbers).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/search/types.h"
+
+namespace calib::search::internal {
+
+inline nlohmann::json DoubleToJson(double d) {
+  if (std::isfinite(d)) return d;
+  if (std::isnan(d)) return "nan";
+  return d > 0 ? "inf" : "-inf";
+}
+
+inline double DoubleFromJson(const nlohmann::json& j) {
+  if (j.is_number()) return j.get<double>();
+  const std::string s = j.get<std::string>();
+  if (s == "inf") return std::numeric_limits<double>::infinity();
+  if (s == "-inf") return -std::numeric_limits<double>::infinity();
+  if (s == "nan") return std::numeric_limits<double>::quiet_NaN();
+  throw std::invalid_argument("state: '" + s + "' is not a number");
+}
+
+inline nlohmann::json VectorToJson(const std::vector<double>& v) {
+  nlohmann::json j = nlohmann::json::array();
+  for (double d : v) j.push_back(DoubleToJson(d));
+  return j;
+}
+
+inline std::vector<double> VectorFromJson(const nlohmann::json& j) {
+  std::vector<double> v;
+  v.reserve(j.size());
+  for (const auto& e : j) v.push_back(DoubleFromJson(e));
+  return v;
+}
+
+inline nlohmann::json MatrixToJson(const std::vector<std::vector<double>>& m) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& row : m) j.push_back(VectorToJson(row));
+  return j;
+}
+
+inline std::vector<std::vector<double>> MatrixFromJson(const nlohmann::json& j) {
+  std::vector<std::vector<double>> m;
+  for (const auto& row : j) m.push_back(VectorFromJson(row));
+  return m;
+}
+
+// Maps box-normalised u in [0, 1]^n to the box, clamped so rounding never
+// leaves it.
+inline std::vector<double> FromUnit(const Bounds& b, const std::vector<double>& u) {
+  std::vector<double> x(u.size());
+  for (size_t i = 0; i < u.size(); ++i) {
+    x[i] = std::clamp(b.lower[i] + u[i] * (b.upper[i] - b.lower[i]), b.lower[i], b.upper[i]);
+  }
+  return x;
+}
+
+// Results of one batch of candidates with consecutive ids, stored in slots
+// by id so that arrival order never matters. Failed results hold +inf.
+struct Batch {
+  int64_t first_id = 0;
+  std::vector<std::vector<double>> x;  // in the box
+  std::vector<double> value;           // +inf until told, or when failed
+  std::vector<uint8_t> told;
+  int asked = 0;
+  int told_count = 0;
+
+  int size() const { return static_cast<int>(x.size()); }
+  bool AllAsked() const { return asked == size(); }
+  bool Complete() const { return told_count == size(); }
+
+  void Reset(int64_t first, std::vector<std::vector<double>> points) {
+    first_id = first;
+    x = std::move(points);
+    value.assign(x.size(), std::numeric_limits<double>::infinity());
+    told.assign(x.size(), 0);
+    asked = 0;
+    told_count = 0;
+  }
+
+  std::vector<Candidate> Hand(int max_count) {
+    std::vector<Candidate> out;
+    while (asked < size() && static_cast<int>(out.size()) < max_count) {
+      out.push_back({first_id + asked, x[asked]});
+      ++asked;
+    }
+    return out;
+  }
+
+  // The id must be one of this batch's asked, untold ids (the checked
+  // wrapper guarantees it); anything else is a bug.
+  void Record(const Evaluation& e) {
+    const int64_t i = e.id - first_id;
+    if (i < 0 || i >= asked || told[i]) {
+      throw std::logic_error("batch: result for id " + std::to_string(e.id) +
+                             " does not belong to the current batch");
+    }
+    told[i] = 1;
+    ++told_count;
+    value[i] = e.failed ? std::numeric_limits<double>::infinity() : e.value;
+  }
+
+  nlohmann::json Save() const {
+    nlohmann::json told_json = nlohmann::json::array();
+    for (uint8_t t : told) told_json.push_back(t != 0);
+    return {{"first_id", first_id}, {"x", MatrixToJson(x)}, {"value", VectorToJson(value)},
+            {"told", told_json},    {"asked", asked}};
+  }
+
+  void Restore(const nlohmann::json& j) {
+    first_id = j.at("first_id").get<int64_t>();
+    x = MatrixFromJson(j.at("x"));
+    value = VectorFromJson(j.at("value"));
+    told.clear();
+    told_count = 0;
+    for (const auto& t : j.at("told")) {
+      told.push_back(t.get<bool>() ? 1 : 0);
+      told_count += told.back();
+    }
+    asked = j.at("asked").get<int>();
+    if (value.size() != x.size() || told.size() != x.size() || asked < 0 || asked > size()) {
+      throw std::invalid_argument("state: batch sizes disagree");
+    }
+  }
+};
+
+// Indices 0..n-1 sorted by value, ties by index (failed = +inf last).
+inline std::vector<int> RankOrder(const std::vector<double>& value) {
+  std::vector<int> order(value.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return value[a] < value[b]; });
+  return order;
+}
+
+}  // namespace calib::search::internal

@@ -1,0 +1,117 @@
+// The wrapper catches plug-ins that break the ask contract and runners that
+// tell what was never asked.
+#include <functional>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "harness.h"
+
+namespace calib::search {
+namespace {
+
+// A plug-in whose Ask output a test scripts.
+class ScriptedPlugin final : public Optimizer {
+ public:
+  explicit ScriptedPlugin(std::function<std::vector<Candidate>(int)> ask) : ask_(std::move(ask)) {}
+  std::string name() const override { return "scripted"; }
+  std::vector<Candidate> Ask(int max_count) override { return ask_(max_count); }
+  void Tell(std::span<const Evaluation> r) override {
+    for (const auto& e : r) seen.push_back(e);
+  }
+  bool Done() const override { return false; }
+  std::string StopReason() const override { return ""; }
+  nlohmann::json SaveState() const override { return nlohmann::json::object(); }
+  void RestoreState(const nlohmann::json&) override {}
+  std::vector<Evaluation> seen;
+
+ private:
+  std::function<std::vector<Candidate>(int)> ask_;
+};
+
+std::string LogicErrorOf(std::function<std::vector<Candidate>(int)> ask, int max_count = 2) {
+  CheckedOptimizer opt(std::make_unique<ScriptedPlugin>(std::move(ask)), testing::Box(2, 0, 1));
+  try {
+    opt.Ask(max_count);
+  } catch (const std::logic_error& e) {
+    return e.what();
+  }
+  return "(nothing thrown)";
+}
+
+TEST(CheckedOptimizer, CatchesPluginsThatBreakTheAskContract) {
+  EXPECT_NE(LogicErrorOf([](int) { return std::vector<Candidate>{{0, {0.5, 1.5}}}; })
+                .find("candidate 0 has x[1] = 1.5, outside [0, 1]"),
+            std::string::npos);
+  EXPECT_NE(LogicErrorOf([](int) { return std::vector<Candidate>{{0, {0.5, std::nan("")}}}; })
+                .find("x[1] = nan"),
+            std::string::npos);
+  EXPECT_NE(LogicErrorOf([](int) { return std::vector<Candidate>{{0, {0.5}}}; })
+                .find("candidate 0 has 1 coordinates, expected 2"),
+            std::string::npos);
+  EXPECT_NE(LogicErrorOf([](int) { return std::vector<Candidate>{{3, {0.5, 0.5}}}; })
+                .find("candidate id 3 where 0 was expected"),
+            std::string::npos);
+  EXPECT_NE(LogicErrorOf([](int) {
+              return std::vector<Candidate>{{0, {0, 0}}, {1, {0, 0}}, {2, {0, 0}}};
+            }).find("returned 3 candidates for max_count = 2"),
+            std::string::npos);
+  EXPECT_NE(LogicErrorOf([](int) { return std::vector<Candidate>{}; }, 0), "(nothing thrown)")
+      << "max_count = 0 is refused";
+}
+
+TEST(CheckedOptimizer, RefusesUnaskedDuplicateAndAlteredResultsAndKeepsItsState) {
+  int64_t next = 0;
+  auto plugin = std::make_unique<ScriptedPlugin>([&](int k) {
+    std::vector<Candidate> out;
+    for (int i = 0; i < k; ++i) out.push_back({next++, {0.25, 0.75}});
+    return out;
+  });
+  ScriptedPlugin* raw = plugin.get();
+  CheckedOptimizer opt(std::move(plugin), testing::Box(2, 0, 1));
+  const std::vector<Candidate> c = opt.Ask(3);
+  const auto expect_refused = [&](std::vector<Evaluation> r, const std::string& part) {
+    try {
+      opt.Tell(r);
+      ADD_FAILURE() << "expected std::invalid_argument containing " << part;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  expect_refused({{7, {0.25, 0.75}, 1.0, false}}, "id 7, which is not an asked id");
+  expect_refused({{1, {0.25, 0.75}, 1.0, false}, {1, {0.25, 0.75}, 2.0, false}}, "id 1 told twice");
+  expect_refused({{0, {0.25, 0.5}, 1.0, false}}, "differs from the asked x");
+  EXPECT_TRUE(raw->seen.empty()) << "a refused Tell must not reach the plug-in";
+  EXPECT_EQ(opt.Outstanding().size(), 3u);
+
+  // NaN and infinities reach the plug-in as failed; results arrive sorted.
+  opt.Tell(std::vector<Evaluation>{{2, c[2].x, std::nan(""), false},
+                                   {0, c[0].x, 4.0, false},
+                                   {1, c[1].x, -std::numeric_limits<double>::infinity(), false}});
+  ASSERT_EQ(raw->seen.size(), 3u);
+  EXPECT_EQ(raw->seen[0].id, 0);
+  EXPECT_FALSE(raw->seen[0].failed);
+  EXPECT_TRUE(raw->seen[1].failed);
+  EXPECT_TRUE(raw->seen[2].failed);
+  EXPECT_EQ(opt.failed_count(), 2);
+  ASSERT_TRUE(opt.Best().has_value());
+  EXPECT_EQ(opt.Best()->id, 0);
+  expect_refused({{0, c[0].x, 1.0, false}}, "id 0, which is already told");
+}
+
+TEST(CheckedOptimizer, BestTiesGoToTheLowestIdWhateverTheArrivalOrder) {
+  int64_t next = 0;
+  CheckedOptimizer opt(std::make_unique<ScriptedPlugin>([&](int k) {
+                         std::vector<Candidate> out;
+                         for (int i = 0; i < k; ++i) out.push_back({next++, {0.5, 0.5}});
+                         return out;
+                       }),
+                       testing::Box(2, 0, 1));
+  const auto c = opt.Ask(3);
+  opt.Tell(Evaluation{2, c[2].x, 1.0, false});
+  opt.Tell(Evaluation{1, c[1].x, 1.0, false});
+  EXPECT_EQ(opt.Best()->id, 1);
+}
+
+}  // namespace
+}  // namespace calib::search
