@@ -51,18 +51,40 @@ void BM_Substep(benchmark::State& state) {
 }
 BENCHMARK(BM_Substep)->Unit(benchmark::kMicrosecond);
 
-void BM_ForcesOnly(benchmark::State& state) {
+// The internal forces alone, with a workspace as the simulator keeps one
+// (no allocation per call), on the kernel kAuto picks.
+void ForcesWithKernel(benchmark::State& state, ForceKernel kernel) {
   const Mesh& mesh = Scene().mesh;
   const Model model(mesh);
+  ForceWorkspace workspace = model.MakeWorkspace();
   std::vector<Vec2> x = mesh.rest_positions, v(x.size(), Vec2(0.1, -0.2)), f(x.size());
   for (size_t i = 0; i < x.size(); ++i) x[i] += Vec2(0.3 * std::sin(i), 0.2 * std::cos(i));
   const ModelParameters params = ReferenceParameters();
   for (auto _ : state) {
-    benchmark::DoNotOptimize(model.ComputeForces(params, x, v, f));
+    benchmark::DoNotOptimize(model.ComputeForces(params, x, v, f, workspace, kernel));
   }
   SetMeshCounters(state);
 }
+
+void BM_ForcesOnly(benchmark::State& state) { ForcesWithKernel(state, ForceKernel::kAuto); }
 BENCHMARK(BM_ForcesOnly)->Unit(benchmark::kMicrosecond);
+
+// Each instruction-set kernel (0 baseline, 1 AVX2, 2 AVX-512); one the CPU
+// lacks is skipped.
+void BM_ForcesKernel(benchmark::State& state) {
+  constexpr ForceKernel kKernels[] = {ForceKernel::kBaseline, ForceKernel::kAvx2,
+                                      ForceKernel::kAvx512};
+  const ForceKernel kernel = kKernels[state.range(0)];
+  if (!Model::IsAvailable(kernel)) {
+    state.SkipWithError(("kernel " + ToString(kernel) + " not available").c_str());
+    for (auto _ : state) {
+    }
+    return;
+  }
+  state.SetLabel(ToString(kernel));
+  ForcesWithKernel(state, kernel);
+}
+BENCHMARK(BM_ForcesKernel)->DenseRange(0, 2)->Unit(benchmark::kMicrosecond);
 
 void BM_ScoreFrame(benchmark::State& state) {
   const PreparedRecording& prepared = Scene();

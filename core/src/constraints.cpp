@@ -2,17 +2,137 @@
 
 #include <cmath>
 
+// Each constraint is a scalar loop in index order whose step can move nodes
+// that later elements read, so it must stay sequential. Most elements need no
+// step, though: a scan finds the next element that does, 16 at a time with a
+// branch-free test that GCC vectorises (the same IEEE operations as the
+// scalar test, so it flags exactly the elements the scalar loop would act
+// on), and the scalar step runs from there. The scans are compiled for
+// AVX-512, AVX2 and plain x86-64 and picked at load time; this file is built
+// with -ffp-contract=off (core/CMakeLists.txt), so no FMA changes a bit.
+// tests/core/constraints_test.cpp holds them to the plain loops.
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define CALIB_SCAN_TARGETS __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define CALIB_SCAN_TARGETS
+#endif
+
 namespace calib {
+namespace {
+
+constexpr size_t kScanBlock = 16;
+
+// SignedArea(x[a], x[b], x[c]) of triangle t on interleaved coordinates.
+[[gnu::always_inline]] inline double TriangleArea(const std::array<int, 3>* __restrict tri,
+                                                  const double* __restrict x, size_t t) {
+  const int a = tri[t][0], b = tri[t][1], c = tri[t][2];
+  const double ux = x[2 * b] - x[2 * a], uy = x[2 * b + 1] - x[2 * a + 1];
+  const double vx = x[2 * c] - x[2 * a], vy = x[2 * c + 1] - x[2 * a + 1];
+  return 0.5 * (ux * vy - uy * vx);
+}
+
+// First t in [begin, end) with !(area >= min_area_fraction * A0), or end:
+// RepairInvertedTriangles' test.
+CALIB_SCAN_TARGETS size_t NextTriangleToRepair(const std::array<int, 3>* __restrict tri,
+                                               const double* __restrict rest_area,
+                                               double min_area_fraction,
+                                               const double* __restrict x, size_t begin,
+                                               size_t end) {
+  size_t t = begin;
+  for (; t + kScanBlock <= end; t += kScanBlock) {
+    int any = 0;
+    for (size_t l = t; l < t + kScanBlock; ++l) {
+      any |= !(TriangleArea(tri, x, l) >= min_area_fraction * rest_area[l]);
+    }
+    if (any) break;
+  }
+  for (; t < end; ++t) {
+    if (!(TriangleArea(tri, x, t) >= min_area_fraction * rest_area[t])) return t;
+  }
+  return end;
+}
+
+// First t in [0, end) with !(area > 0), or end: FindInvertedTriangle's test.
+CALIB_SCAN_TARGETS size_t FirstNonPositiveTriangle(const std::array<int, 3>* __restrict tri,
+                                                   const double* __restrict x, size_t end) {
+  size_t t = 0;
+  for (; t + kScanBlock <= end; t += kScanBlock) {
+    int any = 0;
+    for (size_t l = t; l < t + kScanBlock; ++l) any |= !(TriangleArea(tri, x, l) > 0.0);
+    if (any) break;
+  }
+  for (; t < end; ++t) {
+    if (!(TriangleArea(tri, x, t) > 0.0)) return t;
+  }
+  return end;
+}
+
+// First i in [begin, end) with !(|x_i - centre|^2 >= inner_sq) and a nonzero
+// inverse weight, or end: ProjectOutOfDiscs' test. With kAnyWeight, the
+// weight is ignored and the test is |x_i - centre|^2 < inner_sq
+// (FindNodeInsideDisc's).
+template <bool kAnyWeight>
+[[gnu::always_inline]] inline bool NodeFlagged(const double* __restrict x,
+                                               const double* __restrict inverse_weight,
+                                               double cx, double cy, double inner_sq, size_t i) {
+  const double dx = x[2 * i] - cx, dy = x[2 * i + 1] - cy;
+  const double dist_sq = dx * dx + dy * dy;
+  if constexpr (kAnyWeight) {
+    return dist_sq < inner_sq;
+  } else {
+    return !(dist_sq >= inner_sq) & !(inverse_weight[i] == 0.0);
+  }
+}
+
+template <bool kAnyWeight>
+[[gnu::always_inline]] inline size_t NextNodeInDisc(const double* __restrict x,
+                                                    const double* __restrict inverse_weight,
+                                                    double cx, double cy, double inner_sq,
+                                                    size_t begin, size_t end) {
+  size_t i = begin;
+  for (; i + kScanBlock <= end; i += kScanBlock) {
+    int any = 0;
+    for (size_t l = i; l < i + kScanBlock; ++l) {
+      any |= NodeFlagged<kAnyWeight>(x, inverse_weight, cx, cy, inner_sq, l);
+    }
+    if (any) break;
+  }
+  for (; i < end; ++i) {
+    if (NodeFlagged<kAnyWeight>(x, inverse_weight, cx, cy, inner_sq, i)) return i;
+  }
+  return end;
+}
+
+CALIB_SCAN_TARGETS size_t NextNodeToProject(const double* __restrict x,
+                                            const double* __restrict inverse_weight, double cx,
+                                            double cy, double inner_sq, size_t begin,
+                                            size_t end) {
+  return NextNodeInDisc<false>(x, inverse_weight, cx, cy, inner_sq, begin, end);
+}
+
+CALIB_SCAN_TARGETS size_t FirstNodeWithin(const double* __restrict x, double cx, double cy,
+                                          double limit_sq, size_t end) {
+  return NextNodeInDisc<true>(x, nullptr, cx, cy, limit_sq, 0, end);
+}
+
+}  // namespace
 
 int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inverse_weight,
                       std::span<Vec2> x) {
+  static_assert(sizeof(Vec2) == 2 * sizeof(double));
+  const double* xd = reinterpret_cast<const double*>(x.data());
+  const size_t n = x.size();
   int moved = 0;
   for (const Disc& disc : discs) {
     // A node projected onto the circle may land a rounding error inside it;
     // that counts as on the boundary.
     const double inner = disc.radius_px * (1.0 - 1e-12);
     const double inner_sq = inner * inner;
-    for (size_t i = 0; i < x.size(); ++i) {
+    for (size_t i = NextNodeToProject(xd, inverse_weight.data(), disc.centre.x(),
+                                      disc.centre.y(), inner_sq, 0, n);
+         i < n; i = NextNodeToProject(xd, inverse_weight.data(), disc.centre.x(),
+                                      disc.centre.y(), inner_sq, i + 1, n)) {
       const Vec2 d = x[i] - disc.centre;
       const double dist_sq = d.squaredNorm();
       if (dist_sq >= inner_sq || inverse_weight[i] == 0.0) continue;
@@ -27,8 +147,14 @@ int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inver
 
 int RepairInvertedTriangles(const Mesh& mesh, double min_area_fraction,
                             std::span<const double> inverse_weight, std::span<Vec2> x) {
+  const double* xd = reinterpret_cast<const double*>(x.data());
+  const size_t num_triangles = mesh.triangles.size();
+  auto next = [&](size_t begin) {
+    return NextTriangleToRepair(mesh.triangles.data(), mesh.rest_area_px2.data(),
+                                min_area_fraction, xd, begin, num_triangles);
+  };
   int repaired = 0;
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+  for (size_t t = next(0); t < num_triangles; t = next(t + 1)) {
     const auto [a, b, c] = mesh.triangles[t];
     const double target = min_area_fraction * mesh.rest_area_px2[t];
     const double area = SignedArea(x[a], x[b], x[c]);
@@ -54,20 +180,18 @@ int RepairInvertedTriangles(const Mesh& mesh, double min_area_fraction,
 }
 
 int FindInvertedTriangle(const Mesh& mesh, std::span<const Vec2> x) {
-  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-    const auto [a, b, c] = mesh.triangles[t];
-    if (!(SignedArea(x[a], x[b], x[c]) > 0.0)) return static_cast<int>(t);
-  }
-  return -1;
+  const size_t num_triangles = mesh.triangles.size();
+  const size_t t = FirstNonPositiveTriangle(mesh.triangles.data(), reinterpret_cast<const double*>(x.data()), num_triangles);
+  return t < num_triangles ? static_cast<int>(t) : -1;
 }
 
 int FindNodeInsideDisc(std::span<const Disc> discs, std::span<const Vec2> x, double tolerance_px) {
   for (const Disc& disc : discs) {
     const double limit = disc.radius_px - tolerance_px;
     if (limit <= 0.0) continue;
-    for (size_t i = 0; i < x.size(); ++i) {
-      if ((x[i] - disc.centre).squaredNorm() < limit * limit) return static_cast<int>(i);
-    }
+    const size_t i =
+        FirstNodeWithin(reinterpret_cast<const double*>(x.data()), disc.centre.x(), disc.centre.y(), limit * limit, x.size());
+    if (i < x.size()) return static_cast<int>(i);
   }
   return -1;
 }

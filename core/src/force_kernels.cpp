@@ -6,12 +6,24 @@
 
 // AVX2 without FMA: the AVX2 kernel must round exactly as the baseline one,
 // so it may not contract a * b + c whatever -ffp-contract says.
+// The AVX-512 kernel enables FMA instructions (AVX-512F implies them in GCC);
+// -ffp-contract=off, set for this file in core/CMakeLists.txt, keeps GCC
+// from contracting. tests/core/model_test.cpp holds every kernel to the bits
+// of the scalar sums.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__AVX2__)
 #define CALIB_AVX2_KERNEL 1
 #define CALIB_TARGET_AVX2 __attribute__((target("avx2")))
 #else
 #define CALIB_AVX2_KERNEL 0
 #define CALIB_TARGET_AVX2
+#endif
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__AVX512F__)
+#define CALIB_AVX512_KERNEL 1
+#define CALIB_TARGET_AVX512 \
+  __attribute__((target("avx512f,avx512vl,avx512dq,prefer-vector-width=512")))
+#else
+#define CALIB_AVX512_KERNEL 0
+#define CALIB_TARGET_AVX512
 #endif
 
 namespace calib::force_kernels {
@@ -120,7 +132,8 @@ template <bool kSeriesOnly>
     int num_edges, const int* __restrict edge_i, const int* __restrict edge_j,
     const double* __restrict rest_length, const double* __restrict inv_rest_length,
     const double* __restrict x, const double* __restrict v, double k_d, double c_d,
-    double* __restrict out_force, double* __restrict out_inv_sq, double* __restrict out_energy) {
+    double* __restrict out_force, double* __restrict out_force_neg, double* __restrict out_inv_sq,
+    double* __restrict out_energy) {
   for (int e = 0; e < num_edges; ++e) {
     const int i = edge_i[e], j = edge_j[e];
     const double dx = x[2 * j] - x[2 * i], dy = x[2 * j + 1] - x[2 * i + 1];
@@ -143,8 +156,11 @@ template <bool kSeriesOnly>
                          c_d * inv_rest * inv_rest * (dvx * dx + dvy * dy) * inv_length_sq;
     const double energy = 0.5 * k_d * strain * strain;
     out_inv_sq[e] = inv_length_sq;
-    out_force[2 * e] = along * dx;
-    out_force[2 * e + 1] = along * dy;
+    const double fx = along * dx, fy = along * dy;
+    out_force[2 * e] = fx;
+    out_force[2 * e + 1] = fy;
+    out_force_neg[2 * e] = -fx;
+    out_force_neg[2 * e + 1] = -fy;
     // A zero-length spring has strain -1.
     out_energy[e] = ok ? energy : 0.5 * k_d;
   }
@@ -182,6 +198,24 @@ template <bool kSeriesOnly>
   return num_needing_atan2;
 }
 
+// Pass (4): forces[n] = +0 + contribution[list[start[n]]] + ... in list
+// order, per (x, y) pair.
+[[gnu::always_inline]] inline void NodePass(int num_nodes, const int* __restrict start,
+                                            const int* __restrict list,
+                                            const double* __restrict contribution,
+                                            double* __restrict forces) {
+  for (int n = 0; n < num_nodes; ++n) {
+    double sx = 0.0, sy = 0.0;
+    for (int c = start[n], end = start[n + 1]; c < end; ++c) {
+      const int k = list[c];
+      sx += contribution[2 * k];
+      sy += contribution[2 * k + 1];
+    }
+    forces[2 * n] = sx;
+    forces[2 * n + 1] = sy;
+  }
+}
+
 // Sum of values[0..n) in eight interleaved partial sums combined pairwise:
 // a fixed order that vectorises at any width.
 [[gnu::always_inline]] inline double FixedOrderSum(const double* __restrict values, int n) {
@@ -199,10 +233,15 @@ template <bool kSeriesOnly>
                                                        const double* __restrict v,
                                                        double* __restrict forces) {
   ForceWorkspace& ws = *m.workspace;
+  double* const edge_force = ws.contribution.data();
+  double* const edge_force_neg = edge_force + 2 * m.num_edges;
+  double* const triangle_force_a = edge_force_neg + 2 * m.num_edges;
+  double* const triangle_force_b = triangle_force_a + 2 * m.num_triangles;
+  double* const triangle_force_c = triangle_force_b + 2 * m.num_triangles;
 
   // (1) Edges: distance springs and damping.
   EdgePass(m.num_edges, m.edge_i, m.edge_j, m.rest_length, m.inv_rest_length, x, v, k.distance,
-           k.damping, ws.edge_force.data(), ws.edge_inv_length_sq.data(),
+           k.damping, edge_force, edge_force_neg, ws.edge_inv_length_sq.data(),
            ws.edge_energy.data());
 
   // (2) Triangles, every atan by the series.
@@ -210,8 +249,7 @@ template <bool kSeriesOnly>
       m.num_triangles, m.triangle_a, m.triangle_b, m.triangle_c, m.triangle_edge_ab,
       m.triangle_edge_bc, m.triangle_edge_ca, m.rest_area, m.inv_rest_area, m.rest_cos_a,
       m.rest_sin_a, m.rest_cos_b, m.rest_sin_b, x, ws.edge_inv_length_sq.data(), k,
-      ws.triangle_force_a.data(), ws.triangle_force_b.data(), ws.triangle_force_c.data(),
-      ws.triangle_energy.data(), ws.triangle_needs_atan2.data());
+      triangle_force_a, triangle_force_b, triangle_force_c, ws.triangle_energy.data(), ws.triangle_needs_atan2.data());
 
   // (3) The triangles with an angle outside the series' range, again with
   // std::atan2 (the series' lanes give the same bits as before).
@@ -225,32 +263,23 @@ template <bool kSeriesOnly>
           inv_sq[m.triangle_edge_ab[t]], inv_sq[m.triangle_edge_bc[t]],
           inv_sq[m.triangle_edge_ca[t]], m.rest_area[t], m.inv_rest_area[t], m.rest_cos_a[t],
           m.rest_sin_a[t], m.rest_cos_b[t], m.rest_sin_b[t], k);
-      ws.triangle_force_a[2 * t] = r.fax;
-      ws.triangle_force_a[2 * t + 1] = r.fay;
-      ws.triangle_force_b[2 * t] = r.fbx;
-      ws.triangle_force_b[2 * t + 1] = r.fby;
-      ws.triangle_force_c[2 * t] = r.fcx;
-      ws.triangle_force_c[2 * t + 1] = r.fcy;
+      triangle_force_a[2 * t] = r.fax;
+      triangle_force_a[2 * t + 1] = r.fay;
+      triangle_force_b[2 * t] = r.fbx;
+      triangle_force_b[2 * t + 1] = r.fby;
+      triangle_force_c[2 * t] = r.fcx;
+      triangle_force_c[2 * t + 1] = r.fcy;
       ws.triangle_energy[t] = r.energy;
     }
   }
 
-  // (4) Into the nodes in a fixed order: edges, then triangles, each in
-  // index order, as (x, y) pairs (one 128-bit add each).
-  Vec2* node_force = reinterpret_cast<Vec2*>(forces);
-  const Vec2* edge_force = reinterpret_cast<const Vec2*>(ws.edge_force.data());
-  for (int e = 0; e < m.num_edges; ++e) {
-    node_force[m.edge_j[e]] += edge_force[e];
-    node_force[m.edge_i[e]] -= edge_force[e];
-  }
-  const Vec2* force_a = reinterpret_cast<const Vec2*>(ws.triangle_force_a.data());
-  const Vec2* force_b = reinterpret_cast<const Vec2*>(ws.triangle_force_b.data());
-  const Vec2* force_c = reinterpret_cast<const Vec2*>(ws.triangle_force_c.data());
-  for (int t = 0; t < m.num_triangles; ++t) {
-    node_force[m.triangle_a[t]] += force_a[t];
-    node_force[m.triangle_b[t]] += force_b[t];
-    node_force[m.triangle_c[t]] += force_c[t];
-  }
+  // (4) Into the nodes: each node's forces summed from +0 in the order of
+  // the plain scatter (edges, then triangles, each in index order), as
+  // (x, y) pairs. The scatter's f_i -= f is here f_i + (-f): the same IEEE
+  // operation (for finite values; a NaN's sign may differ). Nodes are
+  // independent chains, which the CPU overlaps.
+  NodePass(m.num_nodes, m.node_contribution_start, m.node_contribution,
+           ws.contribution.data(), forces);
 
   // (5) Energy.
   return FixedOrderSum(ws.edge_energy.data(), m.num_edges) +
@@ -277,7 +306,35 @@ bool CpuHasAvx2() {
   }();
   return has;
 }
+#endif
+
+#if CALIB_AVX512_KERNEL
+CALIB_TARGET_AVX512 double ComputeForcesAvx512(const Arrays& arrays, const Stiffness& k,
+                                               const double* x, const double* v,
+                                               double* forces) {
+  return ComputeForcesImpl(arrays, k, x, v, forces);
+}
+
+bool CpuHasAvx512() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") != 0 && __builtin_cpu_supports("avx512vl") != 0 &&
+           __builtin_cpu_supports("avx512dq") != 0;
+  }();
+  return has;
+}
 #else
+// The build already targets AVX-512 (or this is not GCC on x86-64): the
+// baseline kernel covers it.
+double ComputeForcesAvx512(const Arrays& arrays, const Stiffness& k, const double* x,
+                           const double* v, double* forces) {
+  return ComputeForcesImpl(arrays, k, x, v, forces);
+}
+
+bool CpuHasAvx512() { return false; }
+#endif
+
+#if !CALIB_AVX2_KERNEL
 // The build already targets AVX2 (or this is not x86-64 with GCC/Clang): the
 // baseline kernel is the only one.
 double ComputeForcesAvx2(const Arrays& arrays, const Stiffness& k, const double* x,

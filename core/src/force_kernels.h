@@ -6,8 +6,10 @@
 // energy to the workspace; (2) one over the triangles does the same for the
 // area and angle springs, with the atan series on every lane; (3) a scalar
 // pass redoes the rare triangles whose angles are outside the series' range
-// with std::atan2; (4) a sequential pass adds the per-element forces to the
-// nodes, edges then triangles, each in index order; (5) the energies are
+// with std::atan2; (4) a node pass sums each node's forces from a list of
+// them kept in the order of the plain scatter (edges then triangles, each in
+// index order, a subtraction x - f as the identical x + (-f)), so the sums
+// are those of the sequential scatter bit for bit; (5) the energies are
 // summed in eight fixed interleaved partial sums.
 //
 // Every step is the same sequence of IEEE operations per element whatever
@@ -42,6 +44,10 @@ struct Arrays {
   const double* rest_cos_b = nullptr;
   const double* rest_sin_b = nullptr;
 
+  int num_nodes = 0;
+  const int* node_contribution_start = nullptr;  ///< #N + 1
+  const int* node_contribution = nullptr;        ///< pair indices of workspace->contribution
+
   ForceWorkspace* workspace = nullptr;
 };
 
@@ -58,8 +64,11 @@ double ComputeForcesBaseline(const Arrays& arrays, const Stiffness& k, const dou
                              const double* v, double* forces);
 double ComputeForcesAvx2(const Arrays& arrays, const Stiffness& k, const double* x,
                          const double* v, double* forces);
+double ComputeForcesAvx512(const Arrays& arrays, const Stiffness& k, const double* x,
+                           const double* v, double* forces);
 
-/// Whether the CPU (and OS) run AVX2 code.
+/// Whether the CPU (and OS) run AVX2 code; AVX-512 F, VL and DQ code.
 bool CpuHasAvx2();
+bool CpuHasAvx512();
 
 }  // namespace calib::force_kernels

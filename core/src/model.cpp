@@ -14,6 +14,7 @@ std::string ToString(ForceKernel kernel) {
     case ForceKernel::kAuto: return "auto";
     case ForceKernel::kBaseline: return "baseline";
     case ForceKernel::kAvx2: return "avx2";
+    case ForceKernel::kAvx512: return "avx512";
   }
   return "unknown";
 }
@@ -61,24 +62,47 @@ Model::Model(const Mesh& mesh) : mesh_(&mesh) {
     triangle_edge_bc_[t] = edge[1];
     triangle_edge_ca_[t] = edge[2];
   }
+
+  // The contributions to each node in the order the plain scatter adds them
+  // (edges, then triangles, each in index order), as indices of (x, y) pairs
+  // of ForceWorkspace::contribution.
+  const int num_nodes = mesh.NumNodes();
+  const int e_count = static_cast<int>(num_edges), t_count = static_cast<int>(num_triangles);
+  std::vector<std::vector<int>> per_node(num_nodes);
+  for (int e = 0; e < e_count; ++e) {
+    per_node[edge_j_[e]].push_back(e);
+    per_node[edge_i_[e]].push_back(e_count + e);
+  }
+  for (int t = 0; t < t_count; ++t) {
+    per_node[triangle_a_[t]].push_back(2 * e_count + t);
+    per_node[triangle_b_[t]].push_back(2 * e_count + t_count + t);
+    per_node[triangle_c_[t]].push_back(2 * e_count + 2 * t_count + t);
+  }
+  node_contribution_start_.assign(num_nodes + 1, 0);
+  for (int n = 0; n < num_nodes; ++n) {
+    node_contribution_start_[n + 1] =
+        node_contribution_start_[n] + static_cast<int>(per_node[n].size());
+    node_contribution_.insert(node_contribution_.end(), per_node[n].begin(), per_node[n].end());
+  }
 }
 
 ForceWorkspace Model::MakeWorkspace() const {
   const size_t num_edges = mesh_->edges.size(), num_triangles = mesh_->triangles.size();
   ForceWorkspace ws;
-  ws.edge_force.resize(2 * num_edges);
+  ws.contribution.resize(2 * (2 * num_edges + 3 * num_triangles));
   ws.edge_inv_length_sq.resize(num_edges);
   ws.edge_energy.resize(num_edges);
-  ws.triangle_force_a.resize(2 * num_triangles);
-  ws.triangle_force_b.resize(2 * num_triangles);
-  ws.triangle_force_c.resize(2 * num_triangles);
   ws.triangle_energy.resize(num_triangles);
   ws.triangle_needs_atan2.resize(num_triangles);
   return ws;
 }
 
 bool Model::IsAvailable(ForceKernel kernel) {
-  return kernel != ForceKernel::kAvx2 || force_kernels::CpuHasAvx2();
+  switch (kernel) {
+    case ForceKernel::kAvx2: return force_kernels::CpuHasAvx2();
+    case ForceKernel::kAvx512: return force_kernels::CpuHasAvx512();
+    default: return true;
+  }
 }
 
 double Model::ComputeForces(const ModelParameters& params, std::span<const Vec2> x,
@@ -103,6 +127,9 @@ double Model::ComputeForces(const ModelParameters& params, std::span<const Vec2>
   arrays.rest_sin_a = rest_sin_a_.data();
   arrays.rest_cos_b = rest_cos_b_.data();
   arrays.rest_sin_b = rest_sin_b_.data();
+  arrays.num_nodes = static_cast<int>(node_contribution_start_.size()) - 1;
+  arrays.node_contribution_start = node_contribution_start_.data();
+  arrays.node_contribution = node_contribution_.data();
   arrays.workspace = &ws;
   force_kernels::Stiffness k;
   k.distance = params.k_distance;
@@ -111,13 +138,18 @@ double Model::ComputeForces(const ModelParameters& params, std::span<const Vec2>
   k.angle = params.k_angle;
 
   // Vec2 is two contiguous doubles, so the spans are interleaved (x, y) arrays.
+  // Every node's force is written by the kernel's node pass.
   static_assert(sizeof(Vec2) == 2 * sizeof(double));
-  for (Vec2& f : forces) f.setZero();
   const double* xd = x.data()->data();
   const double* vd = v.data()->data();
   double* fd = forces.data()->data();
   if (kernel == ForceKernel::kAuto) {
-    kernel = force_kernels::CpuHasAvx2() ? ForceKernel::kAvx2 : ForceKernel::kBaseline;
+    kernel = force_kernels::CpuHasAvx512() ? ForceKernel::kAvx512
+             : force_kernels::CpuHasAvx2() ? ForceKernel::kAvx2
+                                            : ForceKernel::kBaseline;
+  }
+  if (kernel == ForceKernel::kAvx512 && force_kernels::CpuHasAvx512()) {
+    return force_kernels::ComputeForcesAvx512(arrays, k, xd, vd, fd);
   }
   if (kernel == ForceKernel::kAvx2 && force_kernels::CpuHasAvx2()) {
     return force_kernels::ComputeForcesAvx2(arrays, k, xd, vd, fd);

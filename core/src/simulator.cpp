@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace calib {
 
@@ -36,6 +37,10 @@ bool SimulationOptions::IsValid(std::string* error) const {
 }
 
 Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options)
+    : Simulator(mesh, scene, options, ModelDefinition{}) {}
+
+Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options,
+                     const ModelDefinition& model)
     : mesh_(mesh),
       scene_(scene),
       options_(options),
@@ -47,7 +52,9 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       x_prev_(mesh.rest_positions),
       v_(mesh.NumNodes(), Vec2::Zero()),
       f_(mesh.NumNodes(), Vec2::Zero()),
-      discs_(scene.num_obstacles) {
+      discs_(scene.num_obstacles),
+      definition_(model),
+      parameter_specs_(ModelParameterSpecs(model)) {
   Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (int i = 0; i < mesh.NumNodes(); ++i) {
     const Vec2& p = mesh.rest_positions[i];
@@ -64,10 +71,58 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
   if (mesh.NumNodes() > 0) rest_centroid_ /= mesh.NumNodes();
   const double radius = options.divergence_diameters * std::max((hi - lo).norm(), 1.0);
   divergence_radius_sq_ = radius * radius;
+
+  for (const std::string& name : model.effects) {
+    std::unique_ptr<EffectTerm> effect = MakeEffect(name);
+    effect->Bind(mesh);
+    const EffectHooks hooks = effect->hooks();
+    if (hooks.forces) force_effects_.push_back(effect.get());
+    if (hooks.after_substep) after_substep_effects_.push_back(effect.get());
+    if (hooks.after_frame) after_frame_effects_.push_back(effect.get());
+    if (hooks.step_limit) step_limit_effects_.push_back(effect.get());
+    const auto claim = [&](const EffectTerm*& slot, const char* what) {
+      if (slot != nullptr) {
+        throw std::invalid_argument(fmt::format("effects '{}' and '{}' both change {}; use one",
+                                                slot->name(), name, what));
+      }
+      slot = effect.get();
+    };
+    if (hooks.push) claim(push_effect_, "how the push acts");
+    if (hooks.dynamics) claim(dynamics_effect_, "the dynamics");
+    effects_.push_back(std::move(effect));
+  }
 }
 
 void Simulator::Reset(const ModelParameters& params) {
+  if (!effects_.empty()) {
+    throw std::logic_error(fmt::format(
+        "Simulator::Reset(ModelParameters) on the model {}: the effects need their parameters; "
+        "call Reset(ParameterValues)",
+        definition_.ToString()));
+  }
   params_ = params;
+  ResetState();
+}
+
+void Simulator::Reset(const ParameterValues& values) {
+  ValidateParameters(values, parameter_specs_, "parameters");
+  params_ = ModelParameters::FromValues(values);
+  for (const auto& effect : effects_) {
+    effect->Configure(values, params_);
+    effect->Reset();
+  }
+  second_order_ = false;
+  second_order_damping_per_s_ = 0.0;
+  if (dynamics_effect_ != nullptr) {
+    if (const std::optional<double> damping = dynamics_effect_->SecondOrderDamping()) {
+      second_order_ = true;
+      second_order_damping_per_s_ = *damping;
+    }
+  }
+  ResetState();
+}
+
+void Simulator::ResetState() {
   std::copy(mesh_.rest_positions.begin(), mesh_.rest_positions.end(), x_.begin());
   std::copy(mesh_.rest_positions.begin(), mesh_.rest_positions.end(), x_prev_.begin());
   for (Vec2& v : v_) v.setZero();
@@ -99,9 +154,11 @@ bool Simulator::Substep(int substep) {
   const double alpha0 = static_cast<double>(substep) / options_.substeps;
 
   model_.ComputeForces(params_, x_, v_, f_, force_workspace_);
+  for (const EffectTerm* effect : force_effects_) effect->AddForces(x_, v_, f_, nullptr);
 
   // The measured push: on the node nearest the force obstacle, except the
-  // share tau ("translation") spread evenly over all nodes.
+  // share tau ("translation") spread evenly over all nodes; or as the push
+  // effect (push_relaxation) splits it.
   if (scene_.force_obstacle >= 0 && !scene_.forces.empty()) {
     const Vec2 push = (1.0 - alpha0) * scene_.forces[frame_] +
                       alpha0 * scene_.forces[std::min(frame_ + 1, scene_.num_frames - 1)];
@@ -115,16 +172,40 @@ bool Simulator::Substep(int substep) {
         nearest = i;
       }
     }
-    const Vec2 spread = (params_.translation / n) * push;
-    for (Vec2& f : f_) f += spread;
-    f_[nearest] += (1.0 - params_.translation) * push;
+    if (push_effect_ != nullptr) {
+      PushInfo info;
+      info.push = push;
+      info.contact_node = nearest;
+      info.num_nodes = n;
+      info.translation = params_.translation;
+      const PushSplit split = push_effect_->SplitPush(info);
+      const Vec2 spread = split.spread_total / n;
+      for (Vec2& f : f_) f += spread;
+      f_[nearest] += split.node_force;
+    } else {
+      const Vec2 spread = (params_.translation / n) * push;
+      for (Vec2& f : f_) f += spread;
+      f_[nearest] += (1.0 - params_.translation) * push;
+    }
   }
 
-  if (options_.integrator == IntegratorKind::kFirstOrder) {
+  if (second_order_) {
+    std::copy(x_.begin(), x_.end(), x_prev_.begin());
+    StepDampedSecondOrder(h, second_order_damping_per_s_, params_.mass);
+  } else if (options_.integrator == IntegratorKind::kFirstOrder) {
     std::copy(x_.begin(), x_.end(), x_prev_.begin());
     StepFirstOrder(h / params_.mass, f_, inverse_weight_, x_);
   } else {
     StepVerlet(h * h / params_.mass, f_, inverse_weight_, x_, x_prev_);
+  }
+  if (!step_limit_effects_.empty()) {
+    StepInfo step;
+    step.h_s = h;
+    step.mass = params_.mass;
+    step.second_order = second_order_ || options_.integrator == IntegratorKind::kVerlet;
+    for (const EffectTerm* effect : step_limit_effects_) {
+      effect->LimitStep(x_prev_, inverse_weight_, x_, step);
+    }
   }
 
   for (int i = 0; i < n; ++i) {
@@ -139,7 +220,21 @@ bool Simulator::Substep(int substep) {
 
   const double inv_h = 1.0 / h;
   for (int i = 0; i < n; ++i) v_[i] = (x_[i] - x_prev_[i]) * inv_h;
+  for (EffectTerm* effect : after_substep_effects_) effect->AfterSubstep(x_, h);
   return true;
+}
+
+// The inertia effect's step from x (already copied to x_prev_) with the
+// velocities v_ of the last substep (after its constraints):
+//   x += h v / (1 + h c) + h^2 F / m,
+// semi-implicit Euler with the velocity decay c implicit, for movable nodes.
+void Simulator::StepDampedSecondOrder(double h, double damping_per_s, double mass) {
+  const double keep = h / (1.0 + h * damping_per_s);
+  const double h2_over_m = h * h / mass;
+  for (size_t i = 0; i < x_.size(); ++i) {
+    if (inverse_weight_[i] == 0.0) continue;
+    x_[i] += keep * v_[i] + h2_over_m * f_[i];
+  }
 }
 
 bool Simulator::ApplyConstraints() {
@@ -175,6 +270,7 @@ bool Simulator::FinishFrame() {
       return false;
     }
   }
+  for (EffectTerm* effect : after_frame_effects_) effect->AfterFrame(x_, scene_.frame_time_s);
   ++frame_;
   if (frame_ + 1 >= scene_.num_frames) status_ = SimulationStatus::kFinished;
   return true;

@@ -68,6 +68,12 @@ Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions&
       simulator_(prepared.mesh, prepared.scene, options),
       mesh_mask_(prepared.object_masks.at(0)) {}
 
+Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions& options,
+                     const ModelDefinition& model)
+    : prepared_(prepared),
+      simulator_(prepared.mesh, prepared.scene, options, model),
+      mesh_mask_(prepared.object_masks.at(0)) {}
+
 FrameScore Evaluator::ScoreFrame(int frame) {
   rasterizer_.RasterizeMesh(prepared_.mesh, simulator_.positions(), mesh_mask_);
   return CompareMasks(prepared_.object_masks[frame], mesh_mask_);

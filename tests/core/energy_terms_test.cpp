@@ -5,6 +5,7 @@
 
 #include "calib/core/energy_terms.h"
 #include "calib/core/mesh.h"
+#include "support/force_check.h"
 
 #include <gtest/gtest.h>
 
@@ -17,37 +18,8 @@
 namespace calib {
 namespace {
 
-// A term as a function of N stacked node positions: energy, and forces added.
-template <int N>
-using Term = std::function<double(const std::array<Vec2, N>&, std::array<Vec2, N>&)>;
-
-// Worst relative difference between analytic forces and -dE/dp by central
-// differences, relative to the largest force component (plus a floor).
-template <int N>
-double WorstForceError(const Term<N>& term, const std::array<Vec2, N>& p, double scale) {
-  std::array<Vec2, N> f;
-  for (auto& fi : f) fi.setZero();
-  term(p, f);
-  double max_force = 0.0;
-  for (const auto& fi : f) max_force = std::max(max_force, fi.cwiseAbs().maxCoeff());
-  const double h = 1e-6 * scale;
-  double worst = 0.0;
-  for (int i = 0; i < N; ++i) {
-    for (int d = 0; d < 2; ++d) {
-      auto plus = p, minus = p;
-      plus[i][d] += h;
-      minus[i][d] -= h;
-      std::array<Vec2, N> unused;
-      for (auto& u : unused) u.setZero();
-      const double e_plus = term(plus, unused);
-      const double e_minus = term(minus, unused);
-      const double numeric = -(e_plus - e_minus) / (2.0 * h);
-      const double error = std::abs(numeric - f[i][d]) / (max_force + 1e-12);
-      worst = std::max(worst, error);
-    }
-  }
-  return worst;
-}
+using calib::testing::Term;
+using calib::testing::WorstForceError;
 
 template <int N>
 std::array<Vec2, N> RandomPoints(std::mt19937_64& rng, double scale) {

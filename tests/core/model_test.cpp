@@ -21,16 +21,7 @@ namespace {
 
 using calib::testing::MakeGridMesh;
 
-ModelParameters Stiff() {
-  ModelParameters p;
-  p.k_distance = 50.0;
-  p.k_damping = 0.5;
-  p.k_area = 20.0;
-  p.k_angle = 5.0;
-  p.mass = 0.05;
-  p.translation = 0.0;
-  return p;
-}
+ModelParameters Stiff() { return calib::testing::StiffTestParameters(); }
 
 std::vector<Vec2> Jittered(const std::vector<Vec2>& base, double amount, uint64_t seed) {
   std::mt19937_64 rng(seed);
@@ -124,7 +115,7 @@ void ExpectSameBits(const std::vector<Vec2>& expected, const std::vector<Vec2>& 
 }
 
 constexpr ForceKernel kKernels[] = {ForceKernel::kBaseline, ForceKernel::kAvx2,
-                                    ForceKernel::kAuto};
+                                    ForceKernel::kAvx512, ForceKernel::kAuto};
 
 // Deformations from near rest (every angle on the atan series) to large
 // (many on std::atan2, some triangles inverted).
@@ -181,6 +172,7 @@ TEST(Model, KernelNamesAndAvailability) {
   EXPECT_EQ(ToString(ForceKernel::kAuto), "auto");
   EXPECT_EQ(ToString(ForceKernel::kBaseline), "baseline");
   EXPECT_EQ(ToString(ForceKernel::kAvx2), "avx2");
+  EXPECT_EQ(ToString(ForceKernel::kAvx512), "avx512");
   EXPECT_TRUE(Model::IsAvailable(ForceKernel::kAuto));
   EXPECT_TRUE(Model::IsAvailable(ForceKernel::kBaseline));
 }

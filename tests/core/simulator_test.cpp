@@ -19,16 +19,7 @@ namespace {
 
 using calib::testing::MakeGridMesh;
 
-ModelParameters Stiff() {
-  ModelParameters p;
-  p.k_distance = 50.0;
-  p.k_damping = 0.5;
-  p.k_area = 20.0;
-  p.k_angle = 5.0;
-  p.mass = 0.05;
-  p.translation = 0.0;
-  return p;
-}
+ModelParameters Stiff() { return calib::testing::StiffTestParameters(); }
 
 std::vector<Vec2> Perturbed(const Mesh& mesh, double amount, uint64_t seed) {
   std::mt19937_64 rng(seed);

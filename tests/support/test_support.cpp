@@ -52,4 +52,15 @@ Mesh MakeGridMesh(int nx, int ny, double spacing, const Vec2& origin) {
   return BuildMesh(std::move(positions), std::move(triangles));
 }
 
+ModelParameters StiffTestParameters(double translation) {
+  ModelParameters p;
+  p.k_distance = 50.0;
+  p.k_damping = 0.5;
+  p.k_area = 20.0;
+  p.k_angle = 5.0;
+  p.mass = 0.05;
+  p.translation = translation;
+  return p;
+}
+
 }  // namespace calib::testing

@@ -18,6 +18,7 @@ std::filesystem::path ScratchDir(const std::string& name);
 }  // namespace calib::testing
 
 #include "calib/core/mesh.h"
+#include "calib/core/parameters.h"
 
 namespace calib::testing {
 
@@ -25,5 +26,9 @@ namespace calib::testing {
 /// top-left corner at `origin`, each cell split into two triangles along
 /// alternating diagonals (a symmetric pattern).
 Mesh MakeGridMesh(int nx, int ny, double spacing, const Vec2& origin = Vec2::Zero());
+
+/// Stiff, damped base parameters for small test meshes (settle in a few
+/// hundred substeps), with the given translation share.
+ModelParameters StiffTestParameters(double translation = 0.0);
 
 }  // namespace calib::testing

@@ -23,6 +23,7 @@ enum class ForceKernel {
   kAuto,      ///< the fastest this CPU runs
   kBaseline,  ///< plain x86-64 (SSE2), or whatever the build targets
   kAvx2,      ///< AVX2, chosen at run time where the CPU has it
+  kAvx512,    ///< AVX-512 (F, VL, DQ), chosen at run time where the CPU has it
 };
 
 std::string ToString(ForceKernel kernel);
@@ -31,14 +32,14 @@ std::string ToString(ForceKernel kernel);
 /// per-edge and per-triangle results of the vectorised passes, summed into
 /// the nodes afterwards in a fixed order.
 struct ForceWorkspace {
+  /// Every force on a node, (2 #E + 3 #T) x 2, as blocks of (x, y) pairs:
+  /// per edge the force on node j, per edge the force on node i (its exact
+  /// negation), then per triangle the force on corner a, on b, on c.
+  std::vector<double> contribution;
   // Per edge (#E).
-  std::vector<double> edge_force;          ///< #E x 2: force on node j (node i gets minus it)
   std::vector<double> edge_inv_length_sq;  ///< 1 / |p_j - p_i|^2 (0 if degenerate)
   std::vector<double> edge_energy;
   // Per triangle (#T).
-  std::vector<double> triangle_force_a;  ///< #T x 2: force on corner a
-  std::vector<double> triangle_force_b;  ///< #T x 2
-  std::vector<double> triangle_force_c;  ///< #T x 2
   std::vector<double> triangle_energy;
   /// 1 where a corner angle is outside the atan series' range, so the
   /// triangle is redone with std::atan2.
@@ -82,6 +83,10 @@ class Model {
   std::vector<int> triangle_edge_ab_, triangle_edge_bc_, triangle_edge_ca_;
   std::vector<double> rest_area_, inv_rest_area_;          ///< A0, 1 / A0 per triangle
   std::vector<double> rest_cos_a_, rest_sin_a_, rest_cos_b_, rest_sin_b_;  ///< rest corners a, b
+  // Node n's forces are ForceWorkspace::contribution pairs
+  // node_contribution_[node_contribution_start_[n] .. [n + 1]), in the order
+  // of the plain scatter: edges in index order, then triangles in index order.
+  std::vector<int> node_contribution_start_, node_contribution_;
 };
 
 }  // namespace calib

@@ -2,12 +2,21 @@
 // Runs the model over a scene frame by frame. All buffers are allocated once
 // in the constructor: Reset and Advance allocate nothing, so one Simulator
 // per thread can evaluate many candidates.
+//
+// A simulator runs the base model, or the base model plus the effects of a
+// ModelDefinition (effects.h, model_definition.h): each effect's term is
+// built and sized in the constructor, configured by Reset(ParameterValues)
+// and called from Substep through the hooks it declares. With no effects
+// the substep is the base model's, bit for bit.
 
+#include "calib/core/effects.h"
 #include "calib/core/integrator.h"
 #include "calib/core/model.h"
+#include "calib/core/model_definition.h"
 #include "calib/core/scene.h"
 
 #include <cstdint>
+#include <memory>
 #include <string>
 
 namespace calib {
@@ -34,8 +43,23 @@ class Simulator {
   /// `mesh` and `scene` must outlive the simulator. `options` must be valid.
   Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options);
 
-  /// Back to frame 0 (the rest shape, at rest) with new parameters.
+  /// The base model plus the effects of `model`, in its order. Throws
+  /// std::invalid_argument naming an unknown or repeated effect. With the
+  /// "inertia" effect the integrator is the damped second-order step of that
+  /// effect, whatever options.integrator says.
+  Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options,
+            const ModelDefinition& model);
+
+  /// Back to frame 0 (the rest shape, at rest) with new parameters. Only for
+  /// a simulator without effects (else std::logic_error: use the overload
+  /// below, which also gives the effects their parameters).
   void Reset(const ModelParameters& params);
+
+  /// As above, from named values: exactly the names of parameter_specs()
+  /// (the base model's and every effect's), each finite and within its
+  /// bounds; else ParameterError naming the parameter ("parameters: ...").
+  /// Configures every effect and resets its state (allocates nothing).
+  void Reset(const ParameterValues& values);
 
   /// Simulates from the current frame to the next. Returns false when the
   /// simulation has failed (now or before) or there is no next frame.
@@ -72,7 +96,18 @@ class Simulator {
   const std::vector<uint8_t>& clamped() const { return clamped_; }
   const Model& model() const { return model_; }
 
+  const ModelDefinition& definition() const { return definition_; }
+  /// The parameters Reset(ParameterValues) takes: ModelParameterSpecs(definition()).
+  const std::vector<ParameterSpec>& parameter_specs() const { return parameter_specs_; }
+  /// The effects' terms, in the order of definition().effects.
+  const std::vector<std::unique_ptr<EffectTerm>>& effects() const { return effects_; }
+  const ModelParameters& parameters() const { return params_; }
+  /// Whether the integrator is the inertia effect's second-order step.
+  bool second_order() const { return second_order_; }
+
  private:
+  void ResetState();
+  void StepDampedSecondOrder(double h, double damping_per_s, double mass);
   void InterpolateObstacles(double alpha);
   bool ApplyConstraints();
   bool FinishFrame();
@@ -93,6 +128,18 @@ class Simulator {
   std::vector<Vec2> x_, x_prev_, v_, f_;
   std::vector<Disc> discs_;  // obstacles at the current substep
   Vec2 push_ = Vec2::Zero();
+
+  // Effects (none for the base model): the terms, and per hook the terms
+  // that use it (pointers into effects_, stable under moves).
+  ModelDefinition definition_;
+  std::vector<ParameterSpec> parameter_specs_;
+  std::vector<std::unique_ptr<EffectTerm>> effects_;
+  std::vector<EffectTerm*> force_effects_, after_substep_effects_, after_frame_effects_,
+      step_limit_effects_;
+  const EffectTerm* push_effect_ = nullptr;
+  const EffectTerm* dynamics_effect_ = nullptr;
+  bool second_order_ = false;
+  double second_order_damping_per_s_ = 0.0;
 
   int frame_ = 0;
   SimulationStatus status_ = SimulationStatus::kRunning;

@@ -17,6 +17,7 @@
 
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace calib {
@@ -72,8 +73,14 @@ class Evaluator {
   /// `prepared` must outlive the evaluator; `options` must be valid.
   Evaluator(const PreparedRecording& prepared, const SimulationOptions& options);
 
+  /// The base model plus the effects of `model` (Simulator's constructor:
+  /// std::invalid_argument naming an unknown or repeated effect).
+  Evaluator(const PreparedRecording& prepared, const SimulationOptions& options,
+            const ModelDefinition& model);
+
   /// Simulates the whole recording with `params` and scores every frame.
   /// Never throws for a candidate that blows up: that is a kFailed result.
+  /// The base model only: with effects, std::logic_error (use ParameterValues).
   EvaluationResult Evaluate(const ModelParameters& params) {
     return Evaluate(params, [](int, const Simulator&, const BitMask&, const FrameScore&) {});
   }
@@ -83,10 +90,25 @@ class Evaluator {
   template <class OnFrame>
   EvaluationResult Evaluate(const ModelParameters& params, OnFrame&& on_frame);
 
+  /// As Evaluate(ModelParameters) from named values: the base model's and
+  /// every effect's parameters (simulator().parameter_specs()). Bad values
+  /// (missing, unknown, not finite, out of bounds) throw ParameterError
+  /// naming the parameter; a candidate that blows up is a kFailed result.
+  /// Without effects the result is that of Evaluate(ModelParameters::FromValues(values)).
+  EvaluationResult Evaluate(const ParameterValues& values) {
+    return Evaluate(values, [](int, const Simulator&, const BitMask&, const FrameScore&) {});
+  }
+
+  template <class OnFrame>
+  EvaluationResult Evaluate(const ParameterValues& values, OnFrame&& on_frame);
+
   const Simulator& simulator() const { return simulator_; }
 
  private:
   FrameScore ScoreFrame(int frame);
+  /// Simulates and scores every frame from the state Reset left.
+  template <class OnFrame>
+  EvaluationResult Run(OnFrame&& on_frame);
 
   const PreparedRecording& prepared_;
   Simulator simulator_;
@@ -96,11 +118,22 @@ class Evaluator {
 
 template <class OnFrame>
 EvaluationResult Evaluator::Evaluate(const ModelParameters& params, OnFrame&& on_frame) {
+  simulator_.Reset(params);
+  return Run(std::forward<OnFrame>(on_frame));
+}
+
+template <class OnFrame>
+EvaluationResult Evaluator::Evaluate(const ParameterValues& values, OnFrame&& on_frame) {
+  simulator_.Reset(values);
+  return Run(std::forward<OnFrame>(on_frame));
+}
+
+template <class OnFrame>
+EvaluationResult Evaluator::Run(OnFrame&& on_frame) {
   EvaluationResult result;
   const int num_frames = prepared_.scene.num_frames;
   result.num_frames = num_frames;
   result.frames.reserve(num_frames);
-  simulator_.Reset(params);
   double iou_sum = 0.0;
   for (int frame = 0; frame < num_frames; ++frame) {
     if (frame > 0 && !simulator_.Advance()) break;

@@ -1,0 +1,82 @@
+// Speed of a full evaluation of the reference scene (reference_scene.h) with
+// each effect of the catalogue on, beside BM_FullEvaluation (the base model):
+//
+//   BM_FullEvaluationWithEffect/none     the base model through named values
+//   BM_FullEvaluationWithEffect/<effect> the base model plus that effect
+//   BM_FullEvaluationWithEffect/all      every effect at once
+//
+//   build/bench/calib_bench --benchmark_filter=WithEffect
+
+#include <benchmark/benchmark.h>
+
+#include "calib/core/effects.h"
+#include "reference_scene.h"
+
+namespace calib::bench {
+namespace {
+
+const PreparedRecording& Scene() {
+  static const PreparedRecording prepared = MakeReferenceScene();
+  return prepared;
+}
+
+// The reference parameters plus a value for every effect's parameters under
+// which each effect does something on the reference scene and the run ends
+// ok (a top view: no gravity; the push peaks at 2 force units).
+ParameterValues EffectValues() {
+  ParameterValues values = ReferenceParameters().ToValues();
+  values.insert({{"inertia_damping_per_s", 5.0},
+                 {"gravity_px_s2", 0.0},
+                 {"gravity_angle_deg", 90.0},
+                 {"friction_force", 1.0},
+                 {"plastic_yield_strain", 0.05},
+                 {"plastic_rate_per_s", 2.0},
+                 {"uneven_gradient", 0.5},
+                 {"uneven_angle_deg", 0.0},
+                 {"stiffening_k3", 2000.0},
+                 {"visco_share", 0.3},
+                 {"visco_time_s", 1.0},
+                 {"push_friction_force", 1.0}});
+  return values;
+}
+
+// Only the values the model takes.
+ParameterValues ValuesFor(const ModelDefinition& model) {
+  const ParameterValues all = EffectValues();
+  ParameterValues values;
+  for (const ParameterSpec& spec : ModelParameterSpecs(model))
+    values[spec.name] = all.at(spec.name);
+  return values;
+}
+
+void FullEvaluationWithEffects(benchmark::State& state, const ModelDefinition& model) {
+  Evaluator evaluator(Scene(), SimulationOptions{}, model);
+  const ParameterValues values = ValuesFor(model);
+  for (auto _ : state) {
+    const EvaluationResult result = evaluator.Evaluate(values);
+    if (!result.ok()) state.SkipWithError(result.failure_reason.c_str());
+    benchmark::DoNotOptimize(result.xor_sum);
+  }
+  state.counters["frames"] = Scene().scene.num_frames;
+  state.counters["nodes"] = Scene().mesh.NumNodes();
+}
+
+const bool kRegistered = [] {
+  const auto add = [](const std::string& label, ModelDefinition model) {
+    benchmark::RegisterBenchmark(
+        ("BM_FullEvaluationWithEffect/" + label).c_str(),
+        [model](benchmark::State& state) { FullEvaluationWithEffects(state, model); })
+        ->Unit(benchmark::kMillisecond);
+  };
+  add("none", ModelDefinition{});
+  ModelDefinition all;
+  for (const EffectInfo& info : EffectTermCatalogue()) {
+    add(info.name, ModelDefinition{{info.name}});
+    all.effects.push_back(info.name);
+  }
+  add("all", all);
+  return true;
+}();
+
+}  // namespace
+}  // namespace calib::bench

@@ -1,0 +1,77 @@
+// The simulator allocates nothing per substep, with every effect on: all
+// effect state is sized when the simulator is built. Counted by replacing
+// the global operator new in this test program.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "calib/core/simulator.h"
+#include "support/test_support.h"
+
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace calib {
+namespace {
+
+TEST(EffectsAllocation, NoAllocationPerSubstepWithEveryEffect) {
+  const Mesh mesh = calib::testing::MakeGridMesh(8, 4, 10.0, Vec2(100, 100));
+  Scene scene;
+  scene.frame_time_s = 1.0 / 30.0;
+  scene.num_frames = 40;
+  scene.num_obstacles = 1;
+  scene.force_obstacle = 0;
+  for (int f = 0; f < scene.num_frames; ++f) {
+    const double depth = std::min(1.0, f / 24.0) * 15.0;
+    scene.obstacle_discs.push_back({Vec2(92.0 + depth, 120.0), 8.0});
+    scene.forces.push_back(Vec2(1.0, 0.0));
+  }
+  ModelDefinition model{{"inertia", "table_friction", "plasticity", "uneven_stiffness",
+                         "strain_stiffening", "viscoelastic", "push_relaxation"}};
+  Simulator sim(mesh, scene, {}, model);
+  ModelParameters base;
+  base.k_distance = 50.0;
+  base.k_damping = 0.5;
+  base.k_area = 20.0;
+  base.k_angle = 5.0;
+  base.mass = 0.02;
+  base.translation = 0.2;
+  ParameterValues values = base.ToValues();
+  values.insert({{"inertia_damping_per_s", 3.0},
+                 {"gravity_px_s2", 40.0},
+                 {"gravity_angle_deg", 90.0},
+                 {"friction_force", 0.3},
+                 {"plastic_yield_strain", 0.02},
+                 {"plastic_rate_per_s", 20.0},
+                 {"uneven_gradient", 0.5},
+                 {"uneven_angle_deg", 0.0},
+                 {"stiffening_k3", 300.0},
+                 {"visco_share", 0.3},
+                 {"visco_time_s", 0.5},
+                 {"push_friction_force", 0.4}});
+  sim.Reset(values);
+  g_allocations = 0;
+  g_counting = true;
+  int frames = 0;
+  while (sim.Advance()) ++frames;
+  g_counting = false;
+  EXPECT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
+  EXPECT_EQ(frames, scene.num_frames - 1);
+  EXPECT_EQ(g_allocations.load(), 0) << "allocations during " << frames << " frames";
+}
+
+}  // namespace
+}  // namespace calib
