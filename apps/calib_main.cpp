@@ -4,9 +4,13 @@
 
 #include "calib/core/parameters.h"
 #include "calib/jobs/commands.h"
+#include "calib/synth/scenario.h"
+#include "calib/synth/synthesize.h"
+#include "job_cli.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
@@ -56,6 +60,8 @@ int main(int argc, char** argv) {
       "calib: calibrates a 2D mass-spring model of a deformable object against a video.\n"
       "Recordings follow shared/spec/dataset.md."};
   app.require_subcommand(1);
+  // Messages, progress and errors on stderr; results on stdout.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("calib"));
   spdlog::set_pattern("%^[%l]%$ %v");
 
   CommandSettings settings;
@@ -89,9 +95,21 @@ int main(int argc, char** argv) {
 
   auto* params_cmd = app.add_subcommand("params", "list the model's parameters");
 
+  std::filesystem::path scenario_path;
+  std::filesystem::path synth_out;
+  auto* synth = app.add_subcommand(
+      "synth", "make a synthetic recording from a scenario file (docs/scenario.md)");
+  synth->add_option("scenario", scenario_path, "scenario file (YAML)")->required();
+  synth->add_option("--out", synth_out, "recording folder to write")->required();
+
+  const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best
+
   CLI11_PARSE(app, argc, argv);
 
   try {
+    if (const auto status = calib::cli::RunChosenJobSubcommand(*job_cli, argc, argv)) {
+      return *status;
+    }
     Finish(&settings, integrator, cache_dir, no_cache);
     if (*mesh) {
       const auto summary = calib::RunMesh(recording, out, settings);
@@ -111,6 +129,13 @@ int main(int argc, char** argv) {
       const auto result = calib::RunScore(recording, params, settings);
       PrintResult(result);
       return result.ok() ? 0 : 3;
+    } else if (*synth) {
+      const calib::synth::Scenario scenario = calib::synth::LoadScenario(scenario_path);
+      const auto summary = calib::synth::Synthesize(scenario, synth_out);
+      fmt::print("wrote {} (recording.json, video.mp4, track.csv, truth.json)\n",
+                 summary.folder.string());
+      fmt::print("{}\n", summary.BriefReport());
+      fmt::print("time: {:.1f} s, size: {:.2f} MB\n", summary.total_s, summary.bytes / 1e6);
     } else if (*params_cmd) {
       for (const auto& spec : calib::BaseModelParameterSpecs()) {
         fmt::print("{:<6} {}{}, {}]  {}  ({})\n", spec.name, spec.lower_open ? "(" : "[",

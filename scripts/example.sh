@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # README command A: installs, builds and runs the main job on the bundled
-# example (examples/push_centre): mesh it, simulate it with a parameter file
-# and score it, writing the overlay video and the per-frame CSV to out/example.
+# example: calibrates the model on the centre-push recording
+# (examples/push_centre) with CMA-ES on every core, predicts the held-out
+# offset push (examples/push_offset), and prints where the best parameters,
+# the overlay videos and the summary are (out/jobs/push_centre_cmaes/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh
-out=out/example
-./build/apps/calib mesh examples/push_centre --out "$out"
-./build/apps/calib simulate examples/push_centre --params examples/params_push.json \
-  --out "$out" --png-frames 0,120,200
-./build/apps/calib score examples/push_centre --params examples/params_push.json
+job=examples/jobs/push_centre_cmaes.yaml
+# Each run of command A starts the job afresh (`calib resume $job` continues
+# an interrupted one instead).
+rm -rf out/jobs/push_centre_cmaes.sqlite* out/jobs/push_centre_cmaes
+./build/apps/calib run "$job"
+echo
+./build/apps/calib results "$job"

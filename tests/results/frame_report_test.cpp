@@ -4,9 +4,9 @@
 
 #include "calib/results/frame_report.h"
 
+#include "support/csv_support.h"
 #include "support/test_support.h"
 
-#include <csv.h>
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -17,28 +17,8 @@
 namespace calib {
 namespace {
 
-using Rows = std::vector<std::vector<std::string>>;
-
-Rows ParseCsv(const std::string& text) {
-  struct State {
-    Rows rows;
-    std::vector<std::string> row;
-  } state;
-  csv_parser parser;
-  csv_init(&parser, CSV_STRICT | CSV_APPEND_NULL);
-  const auto on_field = [](void* data, size_t, void* out) {
-    static_cast<State*>(out)->row.emplace_back(static_cast<const char*>(data));
-  };
-  const auto on_row = [](int, void* out) {
-    auto* s = static_cast<State*>(out);
-    s->rows.push_back(std::move(s->row));
-    s->row.clear();
-  };
-  EXPECT_EQ(csv_parse(&parser, text.data(), text.size(), on_field, on_row, &state), text.size());
-  csv_fini(&parser, on_field, on_row, &state);
-  csv_free(&parser);
-  return state.rows;
-}
+using testing::ParseCsv;
+using Rows = testing::CsvRows;
 
 TEST(FrameReport, MarksFailedAndUnsimulatedFramesAndKeepsTheReasonIntact) {
   EvaluationResult result;

@@ -1,0 +1,118 @@
+#pragma once
+// What the runner minimises: a candidate's parameter values in, a score and
+// its evidence out.
+//
+// An Objective is shared by every thread and holds what does not depend on
+// the candidate (the prepared recordings, read-only). Each thread evaluates
+// through its own ObjectiveWorker, which owns that thread's preallocated
+// buffers (for the recordings: one Evaluator per recording). The runner makes
+// one worker per thread (or per MPI worker rank) before the first candidate.
+//
+// Contract of ObjectiveWorker::Evaluate:
+//  - Deterministic: the same values give the same result bit for bit (except
+//    eval_seconds), whichever worker evaluates them and whatever it evaluated
+//    before. The runner's determinism rests on this.
+//  - An expected numerical failure (a simulation that blows up) is a result
+//    with status kFailed and a reason, never an exception. An exception means
+//    something outside the candidate went wrong (memory, I/O); the runner
+//    catches it and records a failed evaluation whose reason starts with
+//    "exception: ", which the failure policy may retry.
+
+#include "calib/core/parameters.h"
+#include "calib/core/simulator.h"
+#include "calib/evaluator/evaluation.h"
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace calib {
+
+enum class CandidateStatus { kOk, kFailed };
+/// "ok" / "failed".
+std::string ToString(CandidateStatus status);
+/// Throws std::invalid_argument naming the text for anything else.
+CandidateStatus CandidateStatusFromString(std::string_view text);
+
+/// The per-frame IoU of a candidate over every training recording, summarised.
+struct IouSummary {
+  double mean = 0.0;         ///< over every frame scored, all recordings
+  double min = 0.0;          ///< worst frame's IoU (0 when nothing was scored)
+  double max = 0.0;          ///< best frame's IoU (0 when nothing was scored)
+  int worst_recording = -1;  ///< index into the objective's recordings
+  int worst_frame = -1;      ///< frame of `min` within that recording
+  int frames_scored = 0;     ///< frames simulated and scored
+  int frames_total = 0;      ///< frames in the recordings
+
+  bool operator==(const IouSummary&) const = default;
+};
+
+struct ObjectiveResult {
+  CandidateStatus status = CandidateStatus::kFailed;
+  /// Total XOR pixels over every recording and frame scored (lower is better).
+  /// For a failed candidate: over the frames scored before the failure
+  /// (evidence only; the failure policy decides what the optimiser is told).
+  double score = std::numeric_limits<double>::quiet_NaN();
+  IouSummary iou;
+  std::string reason;         ///< empty when kOk
+  /// Failed: the first frame not simulated, within failure_recording; -1 otherwise.
+  int failure_frame = -1;
+  int failure_recording = -1;  ///< failed: index of the recording that failed
+  double eval_seconds = 0.0;  ///< wall time of the evaluation (not deterministic)
+
+  bool ok() const { return status == CandidateStatus::kOk; }
+};
+
+/// One thread's evaluator; not thread-safe, used by one thread at a time.
+class ObjectiveWorker {
+ public:
+  virtual ~ObjectiveWorker() = default;
+  virtual ObjectiveResult Evaluate(const ParameterValues& values) = 0;
+};
+
+class Objective {
+ public:
+  virtual ~Objective() = default;
+  /// A new worker with its own buffers. Called by one thread at a time.
+  virtual std::unique_ptr<ObjectiveWorker> MakeWorker() const = 0;
+  /// One line for logs, e.g. "2 recordings, 660 frames".
+  virtual std::string Describe() const = 0;
+};
+
+/// The one place where a candidate's named values become the simulator's
+/// parameters (model terms beyond the base model add their fields here).
+/// `values` must hold every base-model parameter (ValidateParameters).
+ModelParameters ToModelParameters(const ParameterValues& values);
+
+/// The calibration objective: simulate every training recording with the
+/// candidate and sum the XOR pixels over all frames. A candidate is failed
+/// when any recording's simulation fails; its reason names the recording
+/// and frame.
+class RecordingObjective final : public Objective {
+ public:
+  /// `recordings` non-empty; `options` valid. The recordings are shared
+  /// read-only by every worker.
+  RecordingObjective(std::vector<std::shared_ptr<const PreparedRecording>> recordings,
+                     SimulationOptions options);
+
+  std::unique_ptr<ObjectiveWorker> MakeWorker() const override;
+  std::string Describe() const override;
+
+  const std::vector<std::shared_ptr<const PreparedRecording>>& recordings() const {
+    return recordings_;
+  }
+
+ private:
+  std::vector<std::shared_ptr<const PreparedRecording>> recordings_;
+  SimulationOptions options_;
+};
+
+/// Combines per-recording results into one ObjectiveResult (score, IoU
+/// summary, first failure). `names` labels the recordings in the reason.
+ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& results,
+                                        const std::vector<std::string>& names);
+
+}  // namespace calib

@@ -1,0 +1,246 @@
+#include "calib/jobs/job_commands.h"
+
+#include "calib/jobs/batch_evaluator.h"
+#include "calib/jobs/mpi_evaluator.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <csignal>
+#include <stdexcept>
+#include <utility>
+
+namespace calib {
+namespace {
+
+volatile std::sig_atomic_t g_interrupted = 0;
+
+extern "C" void OnStopSignal(int) { g_interrupted = 1; }
+
+// SIGINT / SIGTERM set a flag the runner polls between candidates; the
+// handler resets itself, so a second SIGINT ends the process at once.
+class ScopedStopSignals {
+ public:
+  ScopedStopSignals() {
+    g_interrupted = 0;
+    struct sigaction action {};
+    action.sa_handler = OnStopSignal;
+    sigemptyset(&action.sa_mask);
+    action.sa_flags = SA_RESETHAND;
+    sigaction(SIGINT, &action, &old_int_);
+    sigaction(SIGTERM, &action, &old_term_);
+  }
+  ~ScopedStopSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  static bool Interrupted() { return g_interrupted != 0; }
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+PreparationOptions Preparation(const JobSpec& spec, const JobCommandOptions& options) {
+  PreparationOptions preparation = spec.model.preparation;
+  if (options.no_cache) {
+    preparation.cache_dir.clear();
+  } else if (options.cache_dir) {
+    preparation.cache_dir = *options.cache_dir;
+  }
+  return preparation;
+}
+
+// Paths of the canonical spec JSON that may differ on resume: they change
+// where things go and how fast, never the history.
+bool ChangeAllowedOnResume(const std::string& path) {
+  for (const char* prefix : {"/threads", "/processes", "/checkpoint", "/budget/wall_time_s",
+                             "/results"}) {
+    const std::string p(prefix);
+    if (path == p || path.rfind(p + "/", 0) == 0) return true;
+  }
+  return false;
+}
+
+void CheckResumedSpec(const JobSpec& spec, ResultStore& store, const JobInfo& info) {
+  const nlohmann::json now = ToJson(spec);
+  if (now == info.spec) return;
+  std::vector<std::string> changed;
+  for (const auto& op : nlohmann::json::diff(info.spec, now)) {
+    const std::string path = op.value("path", "");
+    if (!ChangeAllowedOnResume(path)) changed.push_back(path);
+  }
+  if (!changed.empty()) {
+    std::string list;
+    for (const auto& p : changed) list += (list.empty() ? "" : ", ") + p;
+    throw std::invalid_argument(fmt::format(
+        "{}: job '{}' was started with another spec ({} differ{}); resume needs the same spec "
+        "(only threads, processes, checkpoint, budget.wall_time_s and results may change)",
+        spec.source, spec.name, list, changed.size() == 1 ? "s" : ""));
+  }
+  store.SetJobSpec(info.id, now);
+}
+
+std::filesystem::path StorePath(const JobSpec& spec, const JobCommandOptions& options) {
+  return options.store ? *options.store : spec.results.store;
+}
+
+// Finds or creates the job for `start`. Returns nullopt when resume finds
+// nothing to do (finished or aborted).
+std::optional<int64_t> OpenJobFor(const JobSpec& spec, JobStart start, ResultStore& store,
+                                  RunSummary* left_alone) {
+  const std::optional<JobInfo> info = store.FindJob(spec.name);
+  if (start == JobStart::kRun) {
+    if (!info) return store.CreateJob(spec.name, ToJson(spec));
+    // A job that never got going (created, nothing recorded) may be run again.
+    if (store.EvaluationCount(info->id) == 0 && store.CheckpointCount(info->id) == 0) {
+      CheckResumedSpec(spec, store, *info);
+      return info->id;
+    }
+    throw std::invalid_argument(fmt::format(
+        "{}: job '{}' already exists (status {}, {} evaluations): continue it with `calib resume "
+        "{}`, or give the job another name or store",
+        store.path().string(), spec.name, ToString(info->status),
+        store.EvaluationCount(info->id), spec.source));
+  }
+  if (!info) {
+    throw std::invalid_argument(
+        fmt::format("{}: there is no job '{}' to resume: start it with `calib run {}`",
+                    store.path().string(), spec.name, spec.source));
+  }
+  CheckResumedSpec(spec, store, *info);
+  if (info->status == JobStatus::kFinished || info->status == JobStatus::kAborted) {
+    left_alone->status = JobStatus::kCreated;
+    left_alone->stop_reason = fmt::format("the job is already {} ({})", ToString(info->status),
+                                          info->stop_reason);
+    return std::nullopt;
+  }
+  return info->id;
+}
+
+}  // namespace
+
+std::unique_ptr<Objective> MakeRecordingObjective(const JobSpec& spec,
+                                                  const PreparationOptions& preparation) {
+  CheckRecordings(spec);
+  std::vector<std::shared_ptr<const PreparedRecording>> prepared;
+  for (const auto& folder : spec.train) {
+    prepared.push_back(
+        std::make_shared<const PreparedRecording>(PrepareRecording(LoadRecording(folder), preparation)));
+  }
+  return std::make_unique<RecordingObjective>(std::move(prepared), spec.model.simulation);
+}
+
+JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOptions& options) {
+  JobCommandResult out;
+  const PreparationOptions preparation = Preparation(spec, options);
+  const ObjectiveFactory make_objective =
+      options.make_objective ? options.make_objective : ObjectiveFactory(MakeRecordingObjective);
+  const bool use_mpi = options.mpi != nullptr && options.mpi->size() > 1;
+
+  if (use_mpi && options.mpi->rank() != 0) {
+    ScopedStopSignals ignore;  // the manager decides when to stop
+    RunMpiWorker([&] { return make_objective(spec, preparation); }, options.mpi->rank());
+    out.mpi_worker = true;
+    return out;
+  }
+
+  // The manager's evaluator exists before anything can throw, so its
+  // destructor always releases the workers.
+  std::unique_ptr<MpiBatchEvaluator> mpi_evaluator;
+  if (use_mpi) mpi_evaluator = std::make_unique<MpiBatchEvaluator>(options.mpi->size());
+
+  std::unique_ptr<Objective> objective;
+  std::unique_ptr<BatchEvaluator> evaluator;
+  if (use_mpi) {
+    CheckRecordings(spec);  // fail here, once, rather than on every worker
+    out.objective = "evaluated by the worker ranks";
+  } else {
+    objective = make_objective(spec, preparation);
+    out.objective = objective->Describe();
+    const int threads = ResolveThreadCount(options.threads > 0 ? options.threads : spec.threads);
+    evaluator = std::make_unique<ThreadBatchEvaluator>(*objective, threads);
+  }
+
+  out.store = StorePath(spec, options);
+  if (!out.store.parent_path().empty()) std::filesystem::create_directories(out.store.parent_path());
+  ResultStore store(out.store);
+  const std::optional<int64_t> job = OpenJobFor(spec, start, store, &out.run);
+  if (!job) return out;
+  out.job = *job;
+
+  ProgressDisplay progress(options.progress, options.progress_interval_s);
+  ScopedStopSignals signals;
+  RunControl control;
+  control.batch_size = options.batch_size;
+  control.wall_time_s = options.wall_time_s ? options.wall_time_s : spec.budget.wall_time_s;
+  control.interrupted = [] { return ScopedStopSignals::Interrupted(); };
+  try {
+    if (mpi_evaluator) mpi_evaluator->WaitForWorkers();
+    BatchEvaluator& batch_evaluator = mpi_evaluator ? *mpi_evaluator : *evaluator;
+    out.run = RunCalibration(spec, store, *job, batch_evaluator, control, &progress);
+  } catch (const std::exception& e) {
+    try {
+      store.SetJobStatus(*job, JobStatus::kFailed, e.what());
+    } catch (const std::exception&) {
+      // The store itself failed; the first error is the one to report.
+    }
+    throw;
+  }
+  if (mpi_evaluator) mpi_evaluator->StopWorkers();
+
+  if (options.write_report) {
+    CommandSettings settings;
+    settings.preparation = preparation;
+    settings.simulation = spec.model.simulation;
+    JobReportOptions report_options;
+    report_options.simulate = options.report_simulations;
+    report_options.write_video = options.report_video;
+    out.report = WriteJobReport(spec, store, *job, settings, report_options);
+  }
+  return out;
+}
+
+JobLocation LocateJob(const std::string& job, const std::optional<std::filesystem::path>& store) {
+  JobLocation location;
+  const std::filesystem::path path(job);
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(path, ec)) {
+    JobSpecParseOptions parse;
+    parse.recordings = RecordingCheck::kNone;
+    const JobSpec spec = LoadJobSpec(path, parse);
+    location.name = spec.name;
+    location.store = store ? *store : spec.results.store;
+    return location;
+  }
+  if (!store) {
+    throw std::invalid_argument(fmt::format(
+        "'{}' is not a job spec file; to name a job by its name, give its store with --store",
+        job));
+  }
+  location.name = job;
+  location.store = *store;
+  return location;
+}
+
+std::pair<ResultStore, int64_t> OpenJob(const JobLocation& location) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(location.store, ec)) {
+    throw StoreError(fmt::format("{}: no results store there (has the job been run?)",
+                                 location.store.string()));
+  }
+  StoreOptions options;
+  options.read_only = true;
+  ResultStore store(location.store, options);
+  const std::optional<JobInfo> info = store.FindJob(location.name);
+  if (!info) {
+    std::string names;
+    for (const JobInfo& j : store.Jobs()) names += (names.empty() ? "" : ", ") + j.name;
+    throw StoreError(fmt::format("{}: no job '{}' (jobs there: {})", location.store.string(),
+                                 location.name, names.empty() ? "none" : names));
+  }
+  const int64_t id = info->id;
+  return {std::move(store), id};
+}
+
+}  // namespace calib

@@ -1,0 +1,102 @@
+#include "calib/jobs/job_report.h"
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <set>
+#include <stdexcept>
+
+namespace calib {
+
+std::string JobReport::Report() const {
+  std::string text;
+  if (!best_params.empty()) text += fmt::format("best parameters: {}\n", best_params.string());
+  for (const RecordingReport& r : recordings) {
+    text += fmt::format("{} {}: score {}, mean IoU {:.4f}{}\n", r.role,
+                        r.recording.filename().string(), r.result.xor_sum, r.result.mean_iou,
+                        r.result.ok() ? "" : " (simulation failed: " + r.result.failure_reason + ")");
+    if (!r.overlay_video.empty()) text += fmt::format("  overlay video: {}\n", r.overlay_video.string());
+  }
+  text += fmt::format("summary: {}\n", summary_txt.string());
+  text += fmt::format("evaluations: {} and {}\n", evaluations_csv.string(), job_json.string());
+  return text;
+}
+
+std::string JobResultsText(const ResultStore& store, int64_t job) {
+  const JobInfo info = store.Job(job);
+  std::string text = fmt::format("job: {} (store {})\n", info.name, store.path().string());
+  text += fmt::format("status: {}{}\n", ToString(info.status),
+                      info.stop_reason.empty() ? "" : " (" + info.stop_reason + ")");
+  text += store.Summary(job).Report();
+  if (!text.empty() && text.back() != '\n') text += '\n';
+  if (info.result.is_object() && info.result.contains("recordings")) {
+    for (const auto& r : info.result["recordings"]) {
+      text += fmt::format("{} {}: score {}, mean IoU {:.4f}, status {}\n",
+                          r.value("role", "?"), r.value("recording", "?"),
+                          r.value("score", int64_t{0}), r.value("mean_iou", 0.0),
+                          r.value("status", "?"));
+    }
+  }
+  return text;
+}
+
+JobReport WriteJobReport(const JobSpec& spec, ResultStore& store, int64_t job,
+                         const CommandSettings& settings, const JobReportOptions& options) {
+  JobReport report;
+  report.out_dir = spec.results.out_dir;
+  std::filesystem::create_directories(report.out_dir);
+
+  report.evaluations_csv = report.out_dir / "evaluations.csv";
+  store.ExportCsv(job, report.evaluations_csv);
+  report.job_json = report.out_dir / "job.json";
+
+  const bool has_best = store.Best(job).has_value();
+  if (has_best) {
+    report.best_params = report.out_dir / "best_params.json";
+    store.WriteBestParameterFile(job, report.best_params);
+  }
+
+  nlohmann::json result = {{"recordings", nlohmann::json::array()}};
+  if (has_best && options.simulate) {
+    std::set<std::string> used;
+    const auto simulate = [&](const std::string& role, const std::filesystem::path& recording) {
+      std::string name = recording.filename().string();
+      if (name.empty()) name = recording.parent_path().filename().string();
+      std::string unique = name;
+      for (int k = 2; used.count(role + "/" + unique); ++k) unique = fmt::format("{}_{}", name, k);
+      used.insert(role + "/" + unique);
+      RecordingReport r;
+      r.role = role;
+      r.recording = recording;
+      r.out_dir = report.out_dir / role / unique;
+      SimulateOptions simulate_options;
+      simulate_options.write_video = options.write_video;
+      const SimulateSummary s =
+          RunSimulate(recording, report.best_params, r.out_dir, simulate_options, settings);
+      r.result = s.result;
+      r.overlay_video = s.overlay_video;
+      result["recordings"].push_back({{"role", role},
+                                      {"recording", unique},
+                                      {"path", recording.string()},
+                                      {"score", s.result.xor_sum},
+                                      {"mean_iou", s.result.mean_iou},
+                                      {"status", ToString(s.result.status)},
+                                      {"frames", s.result.num_frames}});
+      report.recordings.push_back(std::move(r));
+    };
+    for (const auto& recording : spec.train) simulate("train", recording);
+    for (const auto& recording : spec.holdout) simulate("holdout", recording);
+    store.SetJobResult(job, result);
+  }
+
+  store.ExportJson(job, report.job_json);
+  report.summary_txt = report.out_dir / "summary.txt";
+  std::ofstream out(report.summary_txt);
+  out << JobResultsText(store, job);
+  if (!out) {
+    throw std::runtime_error(fmt::format("{}: cannot write", report.summary_txt.string()));
+  }
+  return report;
+}
+
+}  // namespace calib

@@ -1,0 +1,449 @@
+// Reading and validating job specs: LoadJobSpec, ParseJobSpec and
+// CheckRecordings (job_spec.h). Every error names the file, the field path,
+// the value and the rule (spec_reader.h).
+
+#include "calib/jobs/job_spec.h"
+
+#include "calib/evaluator/recording.h"
+#include "calib/search/factory.h"
+#include "spec_reader.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace calib {
+namespace {
+
+using spec_reader::MapReader;
+using spec_reader::Show;
+using spec_reader::YamlToJson;
+
+bool ValidName(const std::string& name) {
+  if (name.empty()) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+  });
+}
+
+std::filesystem::path Resolve(const std::filesystem::path& base, const std::string& written) {
+  return (base / std::filesystem::path(written)).lexically_normal();
+}
+
+std::vector<std::filesystem::path> ReadRecordings(MapReader& r, const std::string& key, bool required,
+                                                  const std::filesystem::path& base,
+                                                  RecordingCheck check) {
+  std::vector<std::filesystem::path> out;
+  const YAML::Node list = required ? r.Require(key, "a list of recording folders (at least one)")
+                                   : r.Get(key);
+  if (!list.IsDefined() || list.IsNull()) return out;
+  if (!list.IsSequence()) r.Fail(r.KeyPath(key), list, "expected a list of recording folders");
+  if (required && list.size() == 0) r.Fail(r.KeyPath(key), list, "must list at least one recording folder");
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string path = fmt::format("{}[{}]", r.KeyPath(key), i);
+    if (!list[i].IsScalar() || list[i].Scalar().empty()) {
+      r.Fail(path, list[i], "expected a recording folder path");
+    }
+    const std::filesystem::path dir = Resolve(base, list[i].Scalar());
+    if (check == RecordingCheck::kExists) {
+      if (!std::filesystem::is_directory(dir)) {
+        r.Fail(path, list[i], fmt::format("recording folder {} does not exist", dir.string()));
+      }
+      if (!std::filesystem::is_regular_file(dir / "recording.json")) {
+        r.Fail(path, list[i], fmt::format("{} holds no recording.json", dir.string()));
+      }
+    }
+    out.push_back(dir);
+  }
+  return out;
+}
+
+void ReadModel(MapReader r, ModelSpec* m, const ModelCatalog& catalog) {
+  const YAML::Node effects = r.Get("effects");
+  if (effects.IsDefined() && !effects.IsNull()) {
+    if (!effects.IsSequence()) r.Fail(r.KeyPath("effects"), effects, "expected a list of effect names");
+    std::vector<std::string> known;
+    for (const auto& [name, specs] : catalog.effects) known.push_back(name);
+    for (size_t i = 0; i < effects.size(); ++i) {
+      const std::string path = fmt::format("{}[{}]", r.KeyPath("effects"), i);
+      if (!effects[i].IsScalar()) r.Fail(path, effects[i], "expected an effect name");
+      const std::string name = effects[i].Scalar();
+      if (!catalog.effects.contains(name)) {
+        r.Fail(path, effects[i],
+               fmt::format("unknown model effect; known: {}",
+                           known.empty() ? std::string("none yet") : fmt::format("{}", fmt::join(known, ", "))));
+      }
+      if (std::find(m->effects.begin(), m->effects.end(), name) != m->effects.end()) {
+        r.Fail(path, effects[i], "listed twice");
+      }
+      m->effects.push_back(name);
+    }
+  }
+  SimulationOptions& sim = m->simulation;
+  r.Read("substeps", &sim.substeps);
+  if (sim.substeps < 1) r.Fail(r.KeyPath("substeps"), r.node()["substeps"], "must be >= 1");
+  if (r.Has("integrator")) {
+    const YAML::Node n = r.node()["integrator"];
+    const std::string name = r.String("integrator", n);
+    try {
+      sim.integrator = IntegratorKindFromString(name);
+    } catch (const std::invalid_argument&) {
+      r.Fail(r.KeyPath("integrator"), n, "must be first_order or verlet");
+    }
+  }
+  r.Read("constraint_iterations", &sim.constraint_iterations);
+  if (sim.constraint_iterations < 1) {
+    r.Fail(r.KeyPath("constraint_iterations"), r.node()["constraint_iterations"], "must be >= 1");
+  }
+  r.Read("min_area_fraction", &sim.min_area_fraction);
+  if (!(sim.min_area_fraction > 0.0 && sim.min_area_fraction < 1.0)) {
+    r.Fail(r.KeyPath("min_area_fraction"), r.node()["min_area_fraction"], "must be in (0, 1)");
+  }
+  r.Read("divergence_diameters", &sim.divergence_diameters);
+  if (!(sim.divergence_diameters > 0.0)) {
+    r.Fail(r.KeyPath("divergence_diameters"), r.node()["divergence_diameters"], "must be > 0");
+  }
+
+  PreparationOptions& prep = m->preparation;
+  if (r.Has("segmentation")) {
+    MapReader s(r.Get("segmentation"), r.KeyPath("segmentation"), &r.source());
+    s.Read("open_radius_px", &prep.segmentation.open_radius_px);
+    if (prep.segmentation.open_radius_px < 0) {
+      s.Fail(s.KeyPath("open_radius_px"), s.node()["open_radius_px"], "must be >= 0");
+    }
+    s.Read("close_radius_px", &prep.segmentation.close_radius_px);
+    if (prep.segmentation.close_radius_px < 0) {
+      s.Fail(s.KeyPath("close_radius_px"), s.node()["close_radius_px"], "must be >= 0");
+    }
+    s.Read("fill_holes", &prep.segmentation.fill_holes);
+    s.Finish();
+  }
+  if (r.Has("mesh")) {
+    MapReader s(r.Get("mesh"), r.KeyPath("mesh"), &r.source());
+    s.Read("edge_length_px", &prep.mesher.edge_length_px);
+    if (!(prep.mesher.edge_length_px > 0.0)) {
+      s.Fail(s.KeyPath("edge_length_px"), s.node()["edge_length_px"], "must be > 0");
+    }
+    s.Finish();
+  }
+  r.Read("outline_tolerance_px", &prep.outline_tolerance_px);
+  if (!(prep.outline_tolerance_px >= 0.0)) {
+    r.Fail(r.KeyPath("outline_tolerance_px"), r.node()["outline_tolerance_px"], "must be >= 0");
+  }
+  r.Finish();
+  // Guards against rules added to the options after this reader was written.
+  std::string error;
+  if (!sim.IsValid(&error) || !prep.IsValid(&error)) {
+    throw JobSpecError(fmt::format("{}: model: {}", r.source(), error));
+  }
+}
+
+std::string AllowedRange(const ParameterSpec& s) {
+  return fmt::format("{}{}, {}]", s.lower_open ? "(" : "[", s.lower, s.upper);
+}
+
+bool InRange(const ParameterSpec& s, double v) {
+  const bool below = s.lower_open ? v <= s.lower : v < s.lower;
+  return !below && v <= s.upper;
+}
+
+std::vector<ParameterSetting> ReadParameters(MapReader& top, const std::vector<ParameterSpec>& specs) {
+  const YAML::Node list =
+      top.Require("parameters", "a list of {name, lower, upper, scale} or {name, fixed}");
+  if (!list.IsSequence()) top.Fail("parameters", list, "expected a list of parameters");
+  std::vector<std::string> known;
+  for (const auto& s : specs) known.push_back(s.name);
+  std::vector<ParameterSetting> out;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string path = fmt::format("parameters[{}]", i);
+    MapReader r(list[i], path, &top.source());
+    ParameterSetting p;
+    const YAML::Node name_node = r.Require("name", fmt::format("one of {}", fmt::join(known, ", ")));
+    p.name = r.String("name", name_node);
+    const auto spec = std::find_if(specs.begin(), specs.end(),
+                                   [&](const ParameterSpec& s) { return s.name == p.name; });
+    if (spec == specs.end()) {
+      r.Fail(r.KeyPath("name"), name_node,
+             fmt::format("unknown parameter; the model's are {}", fmt::join(known, ", ")));
+    }
+    for (const auto& q : out) {
+      if (q.name == p.name) r.Fail(r.KeyPath("name"), name_node, "parameter listed twice");
+    }
+    const bool has_fixed = r.Has("fixed");
+    const bool has_lower = r.Has("lower");
+    const bool has_upper = r.Has("upper");
+    const bool has_scale = r.Has("scale");
+    if (has_fixed) {
+      if (has_lower || has_upper || has_scale) {
+        const std::string other = has_lower ? "lower" : has_upper ? "upper" : "scale";
+        r.Fail(r.KeyPath(other), r.node()[other],
+               "a fixed parameter takes no lower, upper or scale (give fixed, or lower and upper)");
+      }
+      const double v = r.Double("fixed", r.node()["fixed"]);
+      if (!InRange(*spec, v)) {
+        r.Fail(r.KeyPath("fixed"), r.node()["fixed"],
+               fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
+      }
+      p.fixed = v;
+    } else {
+      if (!has_lower) r.Missing(r.KeyPath("lower"), "a searched parameter needs lower and upper (or give fixed)");
+      if (!has_upper) r.Missing(r.KeyPath("upper"), "a searched parameter needs lower and upper (or give fixed)");
+      p.lower = r.Double("lower", r.node()["lower"]);
+      p.upper = r.Double("upper", r.node()["upper"]);
+      if (has_scale) {
+        const std::string s = r.String("scale", r.node()["scale"]);
+        try {
+          p.scale = ParameterScaleFromString(s);
+        } catch (const std::invalid_argument&) {
+          r.Fail(r.KeyPath("scale"), r.node()["scale"], "must be linear or log");
+        }
+      }
+      if (!InRange(*spec, p.lower)) {
+        r.Fail(r.KeyPath("lower"), r.node()["lower"],
+               fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
+      }
+      if (!InRange(*spec, p.upper)) {
+        r.Fail(r.KeyPath("upper"), r.node()["upper"],
+               fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
+      }
+      if (!(p.lower < p.upper)) {
+        r.Fail(r.KeyPath("upper"), r.node()["upper"],
+               fmt::format("must be > {} ({})", r.KeyPath("lower"), p.lower));
+      }
+      if (p.scale == ParameterScale::kLog && !(p.lower > 0.0)) {
+        r.Fail(r.KeyPath("lower"), r.node()["lower"], "must be > 0 on a log scale");
+      }
+    }
+    r.Finish();
+    out.push_back(std::move(p));
+  }
+  for (const auto& s : specs) {
+    const bool listed = std::any_of(out.begin(), out.end(),
+                                    [&](const ParameterSetting& p) { return p.name == s.name; });
+    if (!listed) {
+      top.Missing(fmt::format("parameters ('{}')", s.name),
+                  fmt::format("every model parameter must be searched or fixed: add {{name: {}, lower: "
+                              "L, upper: U}} or {{name: {}, fixed: V}} ({}, {}, allowed {})",
+                              s.name, s.name, s.description, s.unit, AllowedRange(s)));
+    }
+  }
+  if (std::none_of(out.begin(), out.end(), [](const ParameterSetting& p) { return p.searched(); })) {
+    top.Fail("parameters", list, "at least one parameter must be searched (have lower and upper)");
+  }
+  return out;
+}
+
+bool TakesMaxEvals(const std::string& name) {
+  return name == "grid" || name == "random" || name == "annealing" || name == "cmaes";
+}
+
+}  // namespace
+
+JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
+                         const std::filesystem::path& base_dir,
+                         const JobSpecParseOptions& options) {
+  const ModelCatalog& catalog = options.catalog != nullptr ? *options.catalog : DefaultModelCatalog();
+  if (!root.IsDefined() || root.IsNull()) throw JobSpecError(fmt::format("{}: empty job spec", source));
+  JobSpec spec;
+  spec.source = source;
+  spec.base_dir = std::filesystem::absolute(base_dir).lexically_normal();
+  MapReader top(root, "", &spec.source);
+
+  const YAML::Node name = top.Require("name", "a job name (letters, digits, '_', '-', '.')");
+  spec.name = top.String("name", name);
+  if (!ValidName(spec.name)) top.Fail("name", name, "must be non-empty letters, digits, '_', '-', '.'");
+
+  spec.train = ReadRecordings(top, "train", true, spec.base_dir, options.recordings);
+  spec.holdout = ReadRecordings(top, "holdout", false, spec.base_dir, options.recordings);
+
+  if (top.Has("model")) {
+    ReadModel(MapReader(top.Get("model"), "model", &spec.source), &spec.model, catalog);
+  } else {
+    top.Get("model");
+  }
+  spec.parameter_specs = catalog.ParameterSpecsFor(spec.model.effects);
+  spec.parameters = ReadParameters(top, spec.parameter_specs);
+
+  // budget before optimizer: the optimiser's own budget defaults to it.
+  {
+    MapReader b(top.Require("budget", "a map with evaluations (and optional wall_time_s)"), "budget",
+                &spec.source);
+    const YAML::Node ev = b.Require("evaluations", "an integer >= 1");
+    spec.budget.evaluations = b.Int("evaluations", ev);
+    if (spec.budget.evaluations < 1) b.Fail("budget.evaluations", ev, "must be >= 1");
+    if (b.Has("wall_time_s")) {
+      const YAML::Node n = b.node()["wall_time_s"];
+      const double w = b.Double("wall_time_s", n);
+      if (!(w > 0.0)) b.Fail("budget.wall_time_s", n, "must be > 0");
+      spec.budget.wall_time_s = w;
+    }
+    b.Finish();
+  }
+
+  if (top.Has("seed")) {
+    const YAML::Node n = top.node()["seed"];
+    try {
+      if (!n.IsScalar() || n.Scalar().empty() || n.Scalar()[0] == '-') throw YAML::Exception({}, "");
+      spec.seed = n.as<uint64_t>();
+    } catch (const YAML::Exception&) {
+      top.Fail("seed", n, "expected an integer >= 0");
+    }
+  }
+  top.Read("threads", &spec.threads);
+  if (spec.threads < 0) top.Fail("threads", top.node()["threads"], "must be >= 0 (0: all cores)");
+  top.Read("processes", &spec.processes);
+  if (spec.processes < 1) top.Fail("processes", top.node()["processes"], "must be >= 1");
+
+  {
+    MapReader o(top.Require("optimizer", "a map with name and settings"), "optimizer", &spec.source);
+    const std::vector<std::string> names = search::OptimizerNames();
+    const YAML::Node n = o.Require("name", fmt::format("one of {}", fmt::join(names, ", ")));
+    spec.optimizer.name = o.String("name", n);
+    if (std::find(names.begin(), names.end(), spec.optimizer.name) == names.end()) {
+      o.Fail("optimizer.name", n, fmt::format("unknown optimiser; one of {}", fmt::join(names, ", ")));
+    }
+    const YAML::Node settings = o.Get("settings");
+    if (settings.IsDefined() && !settings.IsNull()) {
+      if (!settings.IsMap()) o.Fail("optimizer.settings", settings, "expected a map of settings");
+      spec.optimizer.settings = YamlToJson(settings);
+    }
+    o.Finish();
+    std::string filled;
+    const std::string budget_key = TakesMaxEvals(spec.optimizer.name) ? "max_evals"
+                                   : spec.optimizer.name.rfind("nlopt:", 0) == 0 ? "maxeval"
+                                                                                : "";
+    if (!budget_key.empty() && !spec.optimizer.settings.contains(budget_key)) {
+      spec.optimizer.settings[budget_key] = spec.budget.evaluations;
+      filled = fmt::format(" ({} = {} filled in from budget.evaluations)", budget_key,
+                           spec.budget.evaluations);
+    }
+    try {
+      (void)MakeJobOptimizer(spec);
+    } catch (const std::exception& e) {
+      throw JobSpecError(fmt::format("{}: optimizer.settings = {}{}: {}", spec.source,
+                                     spec.optimizer.settings.dump(), filled, e.what()));
+    }
+  }
+
+  if (top.Has("checkpoint")) {
+    MapReader c(top.Get("checkpoint"), "checkpoint", &spec.source);
+    c.Read("every_evaluations", &spec.checkpoint.every_evaluations);
+    if (spec.checkpoint.every_evaluations < 0) {
+      c.Fail("checkpoint.every_evaluations", c.node()["every_evaluations"], "must be >= 0 (0: off)");
+    }
+    c.Read("every_seconds", &spec.checkpoint.every_seconds);
+    if (spec.checkpoint.every_seconds < 0.0) {
+      c.Fail("checkpoint.every_seconds", c.node()["every_seconds"], "must be >= 0 (0: off)");
+    }
+    if (spec.checkpoint.every_evaluations == 0 && spec.checkpoint.every_seconds == 0.0) {
+      c.Fail("checkpoint", c.node(), "every_evaluations and every_seconds cannot both be 0");
+    }
+    c.Finish();
+  } else {
+    top.Get("checkpoint");
+  }
+
+  if (top.Has("failure_policy")) {
+    MapReader f(top.Get("failure_policy"), "failure_policy", &spec.source);
+    FailurePolicy& fp = spec.failure_policy;
+    if (f.Has("mode")) {
+      const YAML::Node n = f.node()["mode"];
+      try {
+        fp.mode = FailureModeFromString(f.String("mode", n));
+      } catch (const std::invalid_argument&) {
+        f.Fail("failure_policy.mode", n, "must be penalty, retry or abort");
+      }
+    }
+    if (f.Has("penalty_score")) fp.penalty_score = f.Double("penalty_score", f.node()["penalty_score"]);
+    if (f.Has("max_retries")) {
+      const YAML::Node n = f.node()["max_retries"];
+      if (fp.mode != FailureMode::kRetry) {
+        f.Fail("failure_policy.max_retries", n,
+               fmt::format("only used with mode retry (mode is {})", ToString(fp.mode)));
+      }
+      f.Read("max_retries", &fp.max_retries);
+      if (fp.max_retries < 1) f.Fail("failure_policy.max_retries", n, "must be >= 1");
+    }
+    if (fp.mode == FailureMode::kAbort) fp.abort_after = 1;
+    f.Read("abort_after", &fp.abort_after);
+    if (fp.abort_after < 0) f.Fail("failure_policy.abort_after", f.node()["abort_after"], "must be >= 0 (0: never)");
+    if (fp.mode == FailureMode::kAbort && fp.abort_after < 1) {
+      f.Fail("failure_policy.abort_after", f.node()["abort_after"], "must be >= 1 with mode abort");
+    }
+    f.Finish();
+  } else {
+    top.Get("failure_policy");
+  }
+
+  spec.results.store = spec.base_dir / "results" / (spec.name + ".sqlite");
+  spec.results.out_dir = spec.base_dir / "results" / spec.name;
+  if (top.Has("results")) {
+    MapReader r(top.Get("results"), "results", &spec.source);
+    std::string store, out_dir;
+    r.Read("store", &store);
+    r.Read("out_dir", &out_dir);
+    if (r.Has("store")) {
+      if (store.empty()) r.Fail("results.store", r.node()["store"], "must be a file path");
+      spec.results.store = Resolve(spec.base_dir, store);
+    }
+    if (r.Has("out_dir")) {
+      if (out_dir.empty()) r.Fail("results.out_dir", r.node()["out_dir"], "must be a folder path");
+      spec.results.out_dir = Resolve(spec.base_dir, out_dir);
+    }
+    r.Finish();
+  } else {
+    top.Get("results");
+  }
+  top.Finish();
+  return spec;
+}
+
+JobSpec ParseJobSpec(const std::string& text, const std::string& source,
+                     const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw JobSpecError(fmt::format("{}: not valid YAML or JSON: {}", source, e.what()));
+  }
+  return ParseJobSpecYaml(root, source, base_dir, options);
+}
+
+JobSpec ParseJobSpec(const nlohmann::json& doc, const std::string& source,
+                     const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+  // JSON is YAML; dump() writes doubles with round-trip precision.
+  return ParseJobSpec(doc.dump(), source, base_dir, options);
+}
+
+JobSpec LoadJobSpec(const std::filesystem::path& path, const JobSpecParseOptions& options) {
+  std::ifstream in(path);
+  if (!in) throw JobSpecError(fmt::format("{}: cannot open job spec", path.string()));
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::filesystem::path base = std::filesystem::absolute(path).parent_path();
+  return ParseJobSpec(text.str(), path.string(), base, options);
+}
+
+void CheckRecordings(const JobSpec& spec) {
+  auto check = [&](const std::vector<std::filesystem::path>& dirs, const char* key) {
+    for (size_t i = 0; i < dirs.size(); ++i) {
+      try {
+        (void)LoadRecording(dirs[i]);
+      } catch (const std::exception& e) {
+        throw JobSpecError(fmt::format("{}: {}[{}] = '{}': {}", spec.source, key, i,
+                                       dirs[i].string(), e.what()));
+      }
+    }
+  };
+  check(spec.train, "train");
+  check(spec.holdout, "holdout");
+}
+
+}  // namespace calib

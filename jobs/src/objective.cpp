@@ -1,0 +1,121 @@
+#include "calib/jobs/objective.h"
+
+#include <fmt/format.h>
+
+#include <stdexcept>
+#include <utility>
+
+namespace calib {
+
+std::string ToString(CandidateStatus status) {
+  return status == CandidateStatus::kOk ? "ok" : "failed";
+}
+
+CandidateStatus CandidateStatusFromString(std::string_view text) {
+  if (text == "ok") return CandidateStatus::kOk;
+  if (text == "failed") return CandidateStatus::kFailed;
+  throw std::invalid_argument(
+      fmt::format("candidate status '{}' is unknown: expected ok or failed", text));
+}
+
+ModelParameters ToModelParameters(const ParameterValues& values) {
+  return ModelParameters::FromValues(values);
+}
+
+ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& results,
+                                        const std::vector<std::string>& names) {
+  ObjectiveResult out;
+  out.status = CandidateStatus::kOk;
+  int64_t xor_sum = 0;
+  double iou_sum = 0.0;
+  bool any_frame = false;
+  // Frames in recording order, then frame order: the same sums for any
+  // thread, so the result is bit-identical wherever it is computed.
+  for (size_t r = 0; r < results.size(); ++r) {
+    const EvaluationResult& result = results[r];
+    out.iou.frames_total += result.num_frames;
+    xor_sum += result.xor_sum;
+    for (size_t f = 0; f < result.frames.size(); ++f) {
+      const double iou = result.frames[f].iou;
+      iou_sum += iou;
+      if (!any_frame || iou > out.iou.max) out.iou.max = iou;
+      if (!any_frame || iou < out.iou.min) {
+        out.iou.min = iou;
+        out.iou.worst_recording = static_cast<int>(r);
+        out.iou.worst_frame = static_cast<int>(f);
+        any_frame = true;
+      }
+    }
+    out.iou.frames_scored += static_cast<int>(result.frames.size());
+    if (!result.ok() && out.status == CandidateStatus::kOk) {
+      out.status = CandidateStatus::kFailed;
+      out.failure_frame = result.failure_frame;
+      out.failure_recording = static_cast<int>(r);
+      out.reason = fmt::format("recording {}: frame {}: {}", r < names.size() ? names[r] : "?",
+                               result.failure_frame, result.failure_reason);
+    }
+  }
+  out.score = static_cast<double>(xor_sum);
+  if (out.iou.frames_scored > 0) out.iou.mean = iou_sum / out.iou.frames_scored;
+  return out;
+}
+
+namespace {
+
+class RecordingWorker final : public ObjectiveWorker {
+ public:
+  RecordingWorker(const std::vector<std::shared_ptr<const PreparedRecording>>& recordings,
+                  const SimulationOptions& options) {
+    evaluators_.reserve(recordings.size());
+    for (const auto& prepared : recordings) {
+      evaluators_.emplace_back(*prepared, options);
+      names_.push_back(prepared->recording.folder.filename().string());
+      if (names_.back().empty()) names_.back() = prepared->recording.folder.string();
+      frames_total_ += prepared->scene.num_frames;
+    }
+    results_.reserve(recordings.size());
+  }
+
+  ObjectiveResult Evaluate(const ParameterValues& values) override {
+    const ModelParameters params = ToModelParameters(values);
+    results_.clear();
+    for (Evaluator& evaluator : evaluators_) {
+      results_.push_back(evaluator.Evaluate(params));
+      if (!results_.back().ok()) break;  // the candidate has failed: spare the rest
+    }
+    ObjectiveResult result = CombineRecordingResults(results_, names_);
+    result.iou.frames_total = frames_total_;  // also the recordings spared
+    return result;
+  }
+
+ private:
+  std::vector<Evaluator> evaluators_;
+  std::vector<std::string> names_;
+  std::vector<EvaluationResult> results_;
+  int frames_total_ = 0;
+};
+
+}  // namespace
+
+RecordingObjective::RecordingObjective(
+    std::vector<std::shared_ptr<const PreparedRecording>> recordings, SimulationOptions options)
+    : recordings_(std::move(recordings)), options_(options) {
+  if (recordings_.empty()) {
+    throw std::invalid_argument("the objective needs at least one training recording");
+  }
+  std::string error;
+  if (!options_.IsValid(&error)) throw std::invalid_argument(error);
+}
+
+std::unique_ptr<ObjectiveWorker> RecordingObjective::MakeWorker() const {
+  return std::make_unique<RecordingWorker>(recordings_, options_);
+}
+
+std::string RecordingObjective::Describe() const {
+  int frames = 0;
+  for (const auto& r : recordings_) frames += r->scene.num_frames;
+  return fmt::format("{} training recording{}, {} frames", recordings_.size(),
+                     recordings_.size() == 1 ? "" : "s", frames);
+}
+
+}  // namespace calib

@@ -1,0 +1,438 @@
+#include "calib/jobs/runner.h"
+
+#include "calib/jobs/checkpoint.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <stdexcept>
+#include <utility>
+
+namespace calib {
+
+bool RunControl::IsValid(std::string* error) const {
+  if (batch_size < 1) {
+    *error = fmt::format("RunControl::batch_size = {}. Violated: batch_size >= 1.", batch_size);
+    return false;
+  }
+  if (wall_time_s && !(*wall_time_s > 0.0)) {
+    *error = fmt::format("RunControl::wall_time_s = {}. Violated: wall_time_s > 0.", *wall_time_s);
+    return false;
+  }
+  if (!(tick_s > 0.0)) {
+    *error = fmt::format("RunControl::tick_s = {}. Violated: tick_s > 0.", tick_s);
+    return false;
+  }
+  return true;
+}
+
+std::string RunSummary::BriefReport() const {
+  std::string text = fmt::format("status: {}{}\n", ToString(status),
+                                 stop_reason.empty() ? "" : " (" + stop_reason + ")");
+  text += fmt::format("evaluations: {} ({} failed); this run: {} simulated, {} reused", evaluations,
+                      failed, evaluated_now, reused);
+  if (resumed_from_checkpoint) text += fmt::format(", resumed from checkpoint {}", *resumed_from_checkpoint);
+  text += '\n';
+  if (best) {
+    text += fmt::format("best: score {} (mean IoU {:.4f}), evaluation {}\n", best->score,
+                        best->mean_iou, best->id);
+  } else {
+    text += "best: none (no evaluation succeeded)\n";
+  }
+  text += fmt::format("time: {:.1f} s this run, {:.1f} s over the job\n", seconds, job_seconds);
+  return text;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+bool SameBits(const std::vector<double>& a, const std::vector<double>& b) {
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
+}
+
+EvaluationRecord ToRecord(const FinishedCandidate& done, const search::Candidate& candidate,
+                          const ParameterValues& values) {
+  const ObjectiveResult& r = done.result;
+  EvaluationRecord rec;
+  rec.id = done.id;
+  rec.parameters = values;
+  rec.x = candidate.x;
+  rec.ok = r.ok();
+  rec.score = r.ok() ? r.score : std::numeric_limits<double>::quiet_NaN();
+  rec.mean_iou = r.iou.mean;
+  rec.iou_min = r.iou.min;
+  rec.iou_max = r.iou.max;
+  rec.failure_frame = r.ok() ? -1 : r.failure_frame;
+  rec.reason = r.reason;
+  rec.eval_time_s = r.eval_seconds;
+  rec.worker = done.worker;
+  rec.attempt = done.attempts;
+  rec.detail = {{"frames_scored", r.iou.frames_scored},
+                {"frames_total", r.iou.frames_total},
+                {"worst_recording", r.iou.worst_recording},
+                {"worst_frame", r.iou.worst_frame}};
+  if (!r.ok()) {
+    rec.detail["partial_score"] = r.score;
+    rec.detail["failure_recording"] = r.failure_recording;
+  }
+  return rec;
+}
+
+// What the optimiser is told for a recorded evaluation (fresh or reused
+// alike, so a resumed run tells exactly what an uninterrupted one did).
+search::Evaluation ToTold(const EvaluationRecord& rec, const FailurePolicy& policy) {
+  search::Evaluation e;
+  e.id = rec.id;
+  e.x = rec.x;
+  if (rec.ok) {
+    e.value = rec.score;
+  } else if (policy.penalty_score) {
+    e.value = *policy.penalty_score;
+  } else {
+    e.value = std::numeric_limits<double>::quiet_NaN();
+    e.failed = true;
+  }
+  return e;
+}
+
+// Lowest score among ok evaluations, ties to the lowest id (as the store
+// and the optimiser rank).
+void UpdateBest(std::optional<EvaluationRecord>& best, const EvaluationRecord& rec) {
+  if (!rec.ok) return;
+  if (!best || rec.score < best->score || (rec.score == best->score && rec.id < best->id)) {
+    best = rec;
+  }
+}
+
+class Run {
+ public:
+  Run(const JobSpec& spec, ResultStore& store, int64_t job, BatchEvaluator& evaluator,
+      const RunControl& control, RunObserver* observer)
+      : spec_(spec),
+        store_(store),
+        job_(job),
+        evaluator_(evaluator),
+        control_(control),
+        observer_(observer ? observer : &silent_),
+        space_(spec),
+        optimizer_(MakeJobOptimizer(spec)),
+        start_(Clock::now()),
+        last_checkpoint_time_(start_) {}
+
+  RunSummary Go() {
+    Restore();
+    store_.SetJobStatus(job_, JobStatus::kRunning);
+    observer_->OnStart(Progress(), fmt::format("{} ({}), {} evaluations budget, {}",
+                                               spec_.name, optimizer_.name(),
+                                               spec_.budget.evaluations, evaluator_.Describe()));
+    Loop();
+    Finish();
+    return summary_;
+  }
+
+ private:
+  void Restore() {
+    LatestCheckpointResult latest = store_.LatestCheckpoint(job_);
+    for (const std::string& w : latest.warnings) Warn(w);
+    if (latest.checkpoint) {
+      const CheckpointRecord& record = *latest.checkpoint;
+      RunnerCheckpoint cp;
+      try {
+        cp = RunnerCheckpoint::FromJson(record.state);
+        if (cp.seed != spec_.seed) {
+          throw std::invalid_argument(
+              fmt::format("it was taken with seed {}, the spec says {}", cp.seed, spec_.seed));
+        }
+        optimizer_.RestoreState(cp.optimizer);
+      } catch (const std::exception& e) {
+        throw std::runtime_error(fmt::format(
+            "{}: job '{}': checkpoint {} does not fit the job spec: {}", store_.path().string(),
+            spec_.name, record.sequence, e.what()));
+      }
+      if (optimizer_.told_count() != cp.told) {
+        throw std::runtime_error(fmt::format(
+            "{}: job '{}': checkpoint {} says {} evaluations were told, its optimiser {}",
+            store_.path().string(), spec_.name, record.sequence, cp.told,
+            optimizer_.told_count()));
+      }
+      told_ = cp.told;
+      failed_ = cp.failed;
+      previous_seconds_ = cp.run_seconds;
+      summary_.resumed_from_checkpoint = record.sequence;
+      told_at_checkpoint_ = told_;
+    }
+    // The best so far and the check that nothing before the checkpoint is
+    // missing; then everything recorded after it, to reuse.
+    std::vector<EvaluationRecord> all = store_.Evaluations(job_);
+    int64_t before = 0;
+    for (EvaluationRecord& rec : all) {
+      if (rec.id < told_) {
+        ++before;
+        UpdateBest(best_, rec);
+      } else {
+        const int64_t id = rec.id;
+        reusable_.emplace(id, std::move(rec));
+      }
+    }
+    if (before != told_) {
+      throw std::runtime_error(fmt::format(
+          "{}: job '{}': the checkpoint covers evaluations 0..{} but the store holds {} of them",
+          store_.path().string(), spec_.name, told_ - 1, before));
+    }
+  }
+
+  bool ShouldStop() {
+    if (stop_reason_.empty()) {
+      if (control_.interrupted && control_.interrupted()) {
+        stop_reason_ = "interrupted";
+      } else if (control_.wall_time_s && Since(start_) >= *control_.wall_time_s) {
+        stop_reason_ = fmt::format("wall time of {} s used", *control_.wall_time_s);
+      }
+    }
+    return !stop_reason_.empty();
+  }
+
+  void Loop() {
+    const int64_t abort_after = spec_.failure_policy.abort_after;
+    if (abort_after > 0 && failed_ >= abort_after) {  // resumed after an abort
+      status_ = JobStatus::kAborted;
+      stop_reason_ = fmt::format("{} failed evaluations (failure policy: abort after {})",
+                                 failed_, abort_after);
+      return;
+    }
+    while (true) {
+      if (optimizer_.Done()) {
+        status_ = JobStatus::kFinished;
+        stop_reason_ = "optimizer: " + optimizer_.StopReason();
+        return;
+      }
+      if (ShouldStop()) {
+        status_ = JobStatus::kStopped;
+        return;
+      }
+      std::vector<search::Candidate> batch = optimizer_.Outstanding();
+      if (batch.empty()) {
+        const int64_t remaining = spec_.budget.evaluations - optimizer_.asked_count();
+        if (remaining <= 0) {
+          status_ = JobStatus::kFinished;
+          stop_reason_ = fmt::format("budget of {} evaluations used", spec_.budget.evaluations);
+          return;
+        }
+        batch = optimizer_.Ask(static_cast<int>(
+            std::min<int64_t>(control_.batch_size, remaining)));
+        if (batch.empty()) {
+          throw std::logic_error(fmt::format(
+              "optimizer {} proposed nothing, has nothing outstanding and is not done",
+              optimizer_.name()));
+        }
+      }
+      if (!RunBatch(batch)) return;  // aborted
+      MaybeCheckpoint(false);
+    }
+  }
+
+  // Evaluates the batch (reusing what the store holds), tells the longest
+  // id prefix that has results. False when the failure policy aborted.
+  bool RunBatch(const std::vector<search::Candidate>& batch) {
+    std::map<int64_t, EvaluationRecord> results;
+    std::map<int64_t, size_t> index_of;
+    std::vector<PendingCandidate> pending;
+    std::vector<ParameterValues> values(batch.size());
+    for (size_t i = 0; i < batch.size(); ++i) {
+      const search::Candidate& c = batch[i];
+      index_of[c.id] = i;
+      values[i] = space_.ToParameters(c.x);
+      auto it = reusable_.find(c.id);
+      if (it != reusable_.end()) {
+        if (!SameBits(it->second.x, c.x)) {
+          throw std::runtime_error(fmt::format(
+              "{}: job '{}': evaluation {} in the store has another x than the optimiser asks "
+              "now; the spec or the program changed since it was recorded",
+              store_.path().string(), spec_.name, c.id));
+        }
+        results.emplace(c.id, std::move(it->second));
+        reusable_.erase(it);
+        ++summary_.reused;
+      } else {
+        pending.push_back({c.id, values[i]});
+      }
+    }
+
+    const int max_attempts =
+        spec_.failure_policy.mode == FailureMode::kRetry ? 1 + spec_.failure_policy.max_retries : 1;
+    running_ = 0;
+    running_failed_ = 0;
+    evaluator_.Evaluate(
+        pending, max_attempts, [this] { return ShouldStop(); },
+        [&](std::vector<FinishedCandidate>&& done) {
+          if (!done.empty()) {
+            std::vector<EvaluationRecord> records;
+            records.reserve(done.size());
+            for (const FinishedCandidate& f : done) {
+              const size_t i = index_of.at(f.id);
+              records.push_back(ToRecord(f, batch[i], values[i]));
+            }
+            store_.RecordEvaluations(job_, records);
+            summary_.evaluated_now += static_cast<int64_t>(records.size());
+            running_ += static_cast<int64_t>(records.size());
+            for (EvaluationRecord& rec : records) {
+              if (!rec.ok) ++running_failed_;
+              UpdateBest(provisional_best_, rec);
+              const int64_t id = rec.id;
+              results.emplace(id, std::move(rec));
+            }
+          }
+          observer_->OnProgress(Progress());
+        },
+        control_.tick_s);
+    running_ = 0;
+    running_failed_ = 0;
+
+    // Tell in id order, up to the first candidate without a result.
+    std::vector<search::Evaluation> told;
+    bool aborted = false;
+    int64_t cut_after = -1;
+    for (const search::Candidate& c : batch) {  // ascending ids
+      auto it = results.find(c.id);
+      if (it == results.end()) break;
+      const EvaluationRecord& rec = it->second;
+      told.push_back(ToTold(rec, spec_.failure_policy));
+      UpdateBest(best_, rec);
+      if (!rec.ok) ++failed_;
+      if (spec_.failure_policy.abort_after > 0 && failed_ >= spec_.failure_policy.abort_after) {
+        aborted = true;
+        cut_after = c.id;
+        break;
+      }
+    }
+    optimizer_.Tell(told);
+    told_ += static_cast<int64_t>(told.size());
+    provisional_best_ = best_;
+    if (aborted) {
+      // The history ends at the N-th failure, whatever else this batch held.
+      summary_.deleted += store_.DeleteEvaluationsFrom(job_, cut_after + 1);
+      status_ = JobStatus::kAborted;
+      stop_reason_ = fmt::format("{} failed evaluation{} (failure policy: abort after {})",
+                                 failed_, failed_ == 1 ? "" : "s",
+                                 spec_.failure_policy.abort_after);
+      return false;
+    }
+    observer_->OnProgress(Progress());
+    return true;
+  }
+
+  void MaybeCheckpoint(bool force) {
+    const CheckpointSpec& every = spec_.checkpoint;
+    const bool by_count =
+        every.every_evaluations > 0 && told_ - told_at_checkpoint_ >= every.every_evaluations;
+    const bool by_time =
+        every.every_seconds > 0.0 && Since(last_checkpoint_time_) >= every.every_seconds;
+    if (!force && !by_count && !by_time) return;
+    if (told_ == told_at_checkpoint_ && summary_.checkpoints_written > 0) return;
+    RunnerCheckpoint cp;
+    cp.optimizer = optimizer_.SaveState();
+    cp.told = told_;
+    cp.failed = failed_;
+    cp.run_seconds = previous_seconds_ + Since(start_);
+    cp.seed = spec_.seed;
+    CheckpointRecord record;
+    record.evaluations_done = told_;
+    record.state = cp.ToJson();
+    const int64_t sequence = store_.SaveCheckpoint(job_, record);
+    ++summary_.checkpoints_written;
+    told_at_checkpoint_ = told_;
+    last_checkpoint_time_ = Clock::now();
+    observer_->OnCheckpoint(Progress(), sequence);
+  }
+
+  void Finish() {
+    if (status_ == JobStatus::kFinished) {
+      // Evaluations past the history (only when the budget was lowered on
+      // resume) would otherwise be reused by nothing and confuse reports.
+      const int64_t extra = store_.DeleteEvaluationsFrom(job_, optimizer_.asked_count());
+      if (extra > 0) {
+        Warn(fmt::format("deleted {} stored evaluations past the end of the history (id >= {})",
+                         extra, optimizer_.asked_count()));
+        summary_.deleted += extra;
+      }
+    }
+    MaybeCheckpoint(true);
+    store_.SetJobStatus(job_, status_, stop_reason_);
+    summary_.status = status_;
+    summary_.stop_reason = stop_reason_;
+    summary_.evaluations = told_;
+    summary_.failed = failed_;
+    summary_.best = best_;
+    summary_.seconds = Since(start_);
+    summary_.job_seconds = previous_seconds_ + summary_.seconds;
+    observer_->OnFinish(Progress());
+  }
+
+  void Warn(const std::string& message) {
+    summary_.warnings.push_back(message);
+    observer_->OnWarning(message);
+  }
+
+  RunProgress Progress() const {
+    RunProgress p;
+    p.evaluations = told_;
+    p.budget = spec_.budget.evaluations;
+    p.failed = failed_ + running_failed_;
+    p.evaluated_now = summary_.evaluated_now;
+    p.running = running_;
+    const std::optional<EvaluationRecord>& best = provisional_best_ ? provisional_best_ : best_;
+    if (best) {
+      p.best_score = best->score;
+      p.best_id = best->id;
+    }
+    p.elapsed_s = Since(start_);
+    return p;
+  }
+
+  const JobSpec& spec_;
+  ResultStore& store_;
+  const int64_t job_;
+  BatchEvaluator& evaluator_;
+  const RunControl& control_;
+  RunObserver silent_;
+  RunObserver* observer_;
+  SearchSpace space_;
+  search::CheckedOptimizer optimizer_;
+  const Clock::time_point start_;
+  Clock::time_point last_checkpoint_time_;
+
+  int64_t told_ = 0;
+  int64_t failed_ = 0;
+  int64_t told_at_checkpoint_ = 0;
+  int64_t running_ = 0;
+  int64_t running_failed_ = 0;  // failed among those running_
+  double previous_seconds_ = 0.0;
+  std::optional<EvaluationRecord> best_;
+  std::optional<EvaluationRecord> provisional_best_;  // includes the batch in flight
+  std::map<int64_t, EvaluationRecord> reusable_;
+  JobStatus status_ = JobStatus::kRunning;
+  std::string stop_reason_;
+  RunSummary summary_;
+};
+
+}  // namespace
+
+RunSummary RunCalibration(const JobSpec& spec, ResultStore& store, int64_t job,
+                          BatchEvaluator& evaluator, const RunControl& control,
+                          RunObserver* observer) {
+  std::string error;
+  if (!control.IsValid(&error)) throw std::invalid_argument(error);
+  return Run(spec, store, job, evaluator, control, observer).Go();
+}
+
+}  // namespace calib

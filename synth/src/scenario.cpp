@@ -1,0 +1,535 @@
+#include "calib/synth/scenario.h"
+
+#include <fmt/format.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+namespace calib::synth {
+
+std::string ToString(ScenarioKind kind) { return kind == ScenarioKind::kPush ? "push" : "hang"; }
+
+ScenarioKind ScenarioKindFromString(const std::string& text) {
+  if (text == "push") return ScenarioKind::kPush;
+  if (text == "hang") return ScenarioKind::kHang;
+  throw std::invalid_argument(fmt::format("scenario kind '{}' is unknown (push or hang)", text));
+}
+
+std::vector<std::string> Effects::EnabledNames() const {
+  std::vector<std::string> names;
+  if (plasticity) names.push_back("plasticity");
+  if (uneven_stiffness) names.push_back("uneven_stiffness");
+  if (strain_stiffening) names.push_back("strain_stiffening");
+  if (viscoelastic) names.push_back("viscoelastic");
+  if (strong_friction) names.push_back("strong_friction");
+  if (inertia_gravity) names.push_back("inertia_gravity");
+  return names;
+}
+
+Scenario DefaultScenario(ScenarioKind kind) {
+  Scenario s;
+  s.kind = kind;
+  if (kind == ScenarioKind::kHang) {
+    s.name = "hang";
+    s.fps = 240.0;
+    s.frames = 180;
+    s.object.width_mm = 25.0;
+    s.object.height_mm = 100.0;
+    s.environment.friction_coefficient = 0.0;
+    s.effects.inertia_gravity = InertiaGravityEffect{};
+  } else {
+    s.name = "push";
+    s.simulation.substeps = 2;  // quasi-static: steps only resolve friction and flow
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------- parsing
+namespace {
+
+std::string Show(const YAML::Node& node) {
+  if (node.IsScalar()) return "'" + node.Scalar() + "'";
+  YAML::Emitter out;
+  out << YAML::Flow << node;
+  return out.c_str();
+}
+
+// Reads the keys of one YAML map, remembering which it consumed so that the
+// rest can be reported as unknown. Every message names source and key path.
+class MapReader {
+ public:
+  MapReader(const YAML::Node& node, std::string path, const std::string* source)
+      : node_(node), path_(std::move(path)), source_(source) {
+    if (!node_.IsMap()) Fail(path_.empty() ? "(top level)" : path_, node_, "a map of keys");
+  }
+
+  std::string KeyPath(const std::string& key) const {
+    return path_.empty() ? key : path_ + "." + key;
+  }
+
+  bool Has(const std::string& key) {
+    const YAML::Node child = node_[key];
+    if (!child.IsDefined()) return false;
+    seen_.insert(key);
+    return true;
+  }
+
+  MapReader Child(const std::string& key) {
+    seen_.insert(key);
+    return MapReader(node_[key], KeyPath(key), source_);
+  }
+  // A map child that may be written `{}` or left empty (`key:`).
+  MapReader OptionalChild(const std::string& key) {
+    seen_.insert(key);
+    const YAML::Node child = node_[key];
+    if (child.IsNull()) return MapReader(YAML::Node(YAML::NodeType::Map), KeyPath(key), source_);
+    return MapReader(child, KeyPath(key), source_);
+  }
+  MapReader Nested(const YAML::Node& node, const std::string& key_path) const {
+    return MapReader(node, key_path, source_);
+  }
+  YAML::Node Node(const std::string& key) {
+    seen_.insert(key);
+    return node_[key];
+  }
+
+  void Read(const std::string& key, double* value) {
+    if (!Has(key)) return;
+    *value = ToDouble(node_[key], KeyPath(key));
+  }
+  void Read(const std::string& key, std::optional<double>* value) {
+    if (!Has(key)) return;
+    *value = ToDouble(node_[key], KeyPath(key));
+  }
+  void Read(const std::string& key, int* value) {
+    if (!Has(key)) return;
+    *value = ToInt(node_[key], KeyPath(key));
+  }
+  void Read(const std::string& key, uint64_t* value) {
+    if (!Has(key)) return;
+    const YAML::Node n = node_[key];
+    try {
+      if (!n.IsScalar() || n.Scalar().empty() || n.Scalar()[0] == '-') throw YAML::Exception({}, "");
+      *value = n.as<uint64_t>();
+    } catch (const YAML::Exception&) {
+      Fail(KeyPath(key), n, "a non-negative integer");
+    }
+  }
+  void Read(const std::string& key, std::string* value) {
+    if (!Has(key)) return;
+    const YAML::Node n = node_[key];
+    if (!n.IsScalar()) Fail(KeyPath(key), n, "a string");
+    *value = n.Scalar();
+  }
+  void Read(const std::string& key, Vec2* value) {
+    if (!Has(key)) return;
+    const YAML::Node n = node_[key];
+    if (!n.IsSequence() || n.size() != 2) Fail(KeyPath(key), n, "a list of 2 numbers");
+    for (int i = 0; i < 2; ++i) (*value)[i] = ToDouble(n[i], fmt::format("{}[{}]", KeyPath(key), i));
+  }
+  void Read(const std::string& key, std::array<int, 3>* value) {
+    if (!Has(key)) return;
+    const YAML::Node n = node_[key];
+    if (!n.IsSequence() || n.size() != 3) Fail(KeyPath(key), n, "a list of 3 integers");
+    for (int i = 0; i < 3; ++i) (*value)[i] = ToInt(n[i], fmt::format("{}[{}]", KeyPath(key), i));
+  }
+
+  // Throws for any key not consumed.
+  void Finish() const {
+    for (const auto& kv : node_) {
+      const std::string key = kv.first.Scalar();
+      if (!seen_.count(key)) {
+        throw ScenarioError(fmt::format("{}: unknown key '{}' (value {})", *source_, KeyPath(key),
+                                        Show(kv.second)));
+      }
+    }
+  }
+
+  [[noreturn]] void Fail(const std::string& key_path, const YAML::Node& n,
+                         const std::string& expected) const {
+    throw ScenarioError(fmt::format("{}: {}: expected {}, found {}", *source_, key_path, expected,
+                                    n.IsDefined() && !n.IsNull() ? Show(n) : "nothing"));
+  }
+
+ private:
+  double ToDouble(const YAML::Node& n, const std::string& key_path) const {
+    try {
+      if (!n.IsScalar()) throw YAML::Exception({}, "");
+      return n.as<double>();
+    } catch (const YAML::Exception&) {
+      Fail(key_path, n, "a number");
+    }
+  }
+  int ToInt(const YAML::Node& n, const std::string& key_path) const {
+    try {
+      if (!n.IsScalar()) throw YAML::Exception({}, "");
+      return n.as<int>();
+    } catch (const YAML::Exception&) {
+      Fail(key_path, n, "an integer");
+    }
+  }
+
+  YAML::Node node_;
+  std::string path_;
+  const std::string* source_;
+  std::set<std::string> seen_;
+};
+
+void ReadObject(MapReader r, ObjectSpec* o) {
+  r.Read("width_mm", &o->width_mm);
+  r.Read("height_mm", &o->height_mm);
+  r.Read("waist_mm", &o->waist_mm);
+  r.Finish();
+}
+
+void ReadPush(MapReader r, PushSpec* p) {
+  r.Read("finger_radius_mm", &p->finger_radius_mm);
+  r.Read("position_fraction", &p->position_fraction);
+  r.Read("position_mm", &p->position_mm);
+  r.Read("depth_mm", &p->depth_mm);
+  r.Read("start_gap_mm", &p->start_gap_mm);
+  r.Read("delay_s", &p->delay_s);
+  r.Read("approach_s", &p->approach_s);
+  r.Read("hold_s", &p->hold_s);
+  r.Read("retract_s", &p->retract_s);
+  r.Read("pencil_radius_mm", &p->pencil_radius_mm);
+  r.Read("pencil_position_fraction", &p->pencil_position_fraction);
+  r.Read("pencil_gap_mm", &p->pencil_gap_mm);
+  r.Finish();
+}
+
+void ReadHang(MapReader r, HangSpec* h) {
+  r.Read("top_margin_mm", &h->top_margin_mm);
+  r.Read("clamp_depth_mm", &h->clamp_depth_mm);
+  r.Read("initial_bend_m_s2", &h->initial_bend_m_s2);
+  r.Finish();
+}
+
+// Reads effect `name` into *slot when the map has it (`{}` or empty: the
+// defaults); `read_keys(reader, effect)` reads the effect's own keys.
+template <typename Effect, typename ReadKeys>
+void ReadEffect(MapReader& r, const char* name, std::optional<Effect>* slot, ReadKeys read_keys) {
+  if (!r.Has(name)) return;
+  MapReader c = r.OptionalChild(name);
+  Effect effect;
+  read_keys(c, effect);
+  c.Finish();
+  *slot = effect;
+}
+
+void ReadEffects(MapReader r, Effects* e) {
+  ReadEffect(r, "plasticity", &e->plasticity, [](MapReader& c, PlasticityEffect& p) {
+    c.Read("yield_strain", &p.yield_strain);
+    c.Read("flow_rate_per_s", &p.flow_rate_per_s);
+  });
+  ReadEffect(r, "uneven_stiffness", &e->uneven_stiffness, [](MapReader& c, UnevenStiffnessEffect& u) {
+    c.Read("gradient", &u.gradient);
+    c.Read("direction", &u.direction);
+    if (!c.Has("regions")) return;
+    const YAML::Node list = c.Node("regions");
+    const std::string path = c.KeyPath("regions");
+    if (!list.IsSequence()) c.Fail(path, list, "a list of regions");
+    for (size_t i = 0; i < list.size(); ++i) {
+      MapReader rr = c.Nested(list[i], fmt::format("{}[{}]", path, i));
+      StiffnessRegionSpec region;
+      rr.Read("centre_fraction", &region.centre_fraction);
+      rr.Read("radius_mm", &region.radius_mm);
+      rr.Read("factor", &region.factor);
+      rr.Finish();
+      u.regions.push_back(region);
+    }
+  });
+  ReadEffect(r, "strain_stiffening", &e->strain_stiffening,
+             [](MapReader& c, StrainStiffeningEffect& s) { c.Read("coefficient", &s.coefficient); });
+  ReadEffect(r, "viscoelastic", &e->viscoelastic, [](MapReader& c, ViscoelasticEffect& v) {
+    c.Read("fraction", &v.fraction);
+    c.Read("relaxation_time_s", &v.relaxation_time_s);
+  });
+  ReadEffect(r, "strong_friction", &e->strong_friction,
+             [](MapReader& c, StrongFrictionEffect& f) { c.Read("coefficient", &f.coefficient); });
+  ReadEffect(r, "inertia_gravity", &e->inertia_gravity,
+             [](MapReader& c, InertiaGravityEffect& g) { c.Read("gravity_m_s2", &g.gravity_m_s2); });
+  r.Finish();
+}
+
+void ReadCamera(MapReader r, CameraSpec* c) {
+  r.Read("width_px", &c->width_px);
+  r.Read("height_px", &c->height_px);
+  r.Read("object_rgb", &c->object_rgb);
+  r.Read("background_rgb", &c->background_rgb);
+  r.Read("finger_rgb", &c->finger_rgb);
+  r.Read("pencil_rgb", &c->pencil_rgb);
+  r.Read("lighting_gradient", &c->lighting_gradient);
+  r.Read("lighting_angle_deg", &c->lighting_angle_deg);
+  r.Read("noise_sigma", &c->noise_sigma);
+  r.Read("blur_sigma_px", &c->blur_sigma_px);
+  r.Read("finger_opacity", &c->finger_opacity);
+  r.Read("texture_contrast", &c->texture_contrast);
+  r.Read("pore_size_px", &c->pore_size_px);
+  r.Read("video_crf", &c->video_crf);
+  r.Finish();
+}
+
+void ReadTop(MapReader& r, Scenario* s) {
+  r.Read("name", &s->name);
+  r.Read("mm_per_px", &s->mm_per_px);
+  r.Read("fps", &s->fps);
+  r.Read("frames", &s->frames);
+  r.Read("seed", &s->seed);
+  r.Read("notes", &s->notes);
+  if (r.Has("object")) ReadObject(r.Child("object"), &s->object);
+  if (r.Has("push")) {
+    if (s->kind != ScenarioKind::kPush) r.Fail(r.KeyPath("push"), r.Node("push"), "no push section for kind hang");
+    ReadPush(r.Child("push"), &s->push);
+  }
+  if (r.Has("hang")) {
+    if (s->kind != ScenarioKind::kHang) r.Fail(r.KeyPath("hang"), r.Node("hang"), "no hang section for kind push");
+    ReadHang(r.Child("hang"), &s->hang);
+  }
+  if (r.Has("material")) {
+    MapReader m = r.Child("material");
+    m.Read("youngs_modulus_pa", &s->material.youngs_modulus_pa);
+    m.Read("poisson_ratio", &s->material.poisson_ratio);
+    m.Read("thickness_mm", &s->material.thickness_mm);
+    m.Read("density_kg_m3", &s->material.density_kg_m3);
+    m.Finish();
+  }
+  if (r.Has("environment")) {
+    MapReader m = r.Child("environment");
+    m.Read("friction_coefficient", &s->environment.friction_coefficient);
+    m.Read("friction_regularisation_mm_s", &s->environment.friction_regularisation_mm_s);
+    m.Finish();
+  }
+  if (r.Has("effects")) ReadEffects(r.OptionalChild("effects"), &s->effects);
+  if (r.Has("camera")) ReadCamera(r.Child("camera"), &s->camera);
+  if (r.Has("sensor")) {
+    MapReader m = r.Child("sensor");
+    m.Read("noise_n", &s->sensor.noise_n);
+    m.Read("bias_n", &s->sensor.bias_n);
+    m.Finish();
+  }
+  if (r.Has("simulation")) {
+    MapReader m = r.Child("simulation");
+    m.Read("fine_edge_px", &s->simulation.fine_edge_px);
+    m.Read("substeps", &s->simulation.substeps);
+    m.Read("max_newton_iterations", &s->simulation.max_newton_iterations);
+    m.Finish();
+  }
+  r.Finish();
+}
+
+// ---------------------------------------------------------------- validation
+
+// Collects the first violated rule as "key = value. Violated: rule."
+class Checker {
+ public:
+  template <class T>
+  void Require(bool ok, const std::string& key, const T& value, const std::string& rule) {
+    if (ok || !message_.empty()) return;
+    message_ = fmt::format("{} = {}. Violated: {}.", key, value, rule);
+  }
+  void RequireFinite(double v, const std::string& key) { Require(std::isfinite(v), key, v, key + " is finite"); }
+  void Positive(double v, const std::string& key) {
+    Require(std::isfinite(v) && v > 0.0, key, v, key + " > 0");
+  }
+  void NonNegative(double v, const std::string& key) {
+    Require(std::isfinite(v) && v >= 0.0, key, v, key + " >= 0");
+  }
+  void InRange(double v, double lo, double hi, const std::string& key) {
+    Require(std::isfinite(v) && v >= lo && v <= hi, key, v, fmt::format("{} <= {} <= {}", lo, key, hi));
+  }
+  void Vector(const Vec2& v, const std::string& key) {
+    Require(v.allFinite(), key, fmt::format("[{}, {}]", v.x(), v.y()), key + " is finite");
+  }
+  void Colour(const std::array<int, 3>& c, const std::string& key) {
+    Require(std::all_of(c.begin(), c.end(), [](int x) { return x >= 0 && x <= 255; }), key,
+            fmt::format("[{}, {}, {}]", c[0], c[1], c[2]), "every channel in 0..255");
+  }
+  bool ok() const { return message_.empty(); }
+  const std::string& message() const { return message_; }
+
+ private:
+  std::string message_;
+};
+
+}  // namespace
+
+bool Scenario::IsValid(std::string* error) const {
+  Checker c;
+  c.Require(!name.empty() && std::all_of(name.begin(), name.end(),
+                                         [](char ch) {
+                                           return std::isalnum(static_cast<unsigned char>(ch)) ||
+                                                  ch == '_' || ch == '-' || ch == '.';
+                                         }),
+            "name", "'" + name + "'", "name is non-empty and uses only letters, digits, _ - .");
+  c.Positive(mm_per_px, "mm_per_px");
+  c.InRange(fps, 1.0, 10000.0, "fps");
+  c.Require(frames >= 2 && frames <= 100000, "frames", frames, "2 <= frames <= 100000");
+  c.Positive(object.width_mm, "object.width_mm");
+  c.Positive(object.height_mm, "object.height_mm");
+  c.Require(std::isfinite(object.waist_mm) && object.waist_mm >= 0.0 &&
+                object.waist_mm < 0.35 * std::min(object.width_mm, object.height_mm),
+            "object.waist_mm", object.waist_mm,
+            "0 <= object.waist_mm < 0.35 * min(object.width_mm, object.height_mm)");
+  if (kind == ScenarioKind::kPush) {
+    c.Positive(push.finger_radius_mm, "push.finger_radius_mm");
+    c.InRange(push.position_fraction, 0.0, 1.0, "push.position_fraction");
+    if (push.position_mm) c.InRange(*push.position_mm, 0.0, object.width_mm, "push.position_mm");
+    c.Require(std::isfinite(push.depth_mm) && push.depth_mm > 0.0 &&
+                  push.depth_mm < 0.5 * object.height_mm,
+              "push.depth_mm", push.depth_mm, "0 < push.depth_mm < object.height_mm / 2");
+    c.NonNegative(push.start_gap_mm, "push.start_gap_mm");
+    c.NonNegative(push.delay_s, "push.delay_s");
+    c.Positive(push.approach_s, "push.approach_s");
+    c.NonNegative(push.hold_s, "push.hold_s");
+    c.Positive(push.retract_s, "push.retract_s");
+    c.Positive(push.pencil_radius_mm, "push.pencil_radius_mm");
+    c.InRange(push.pencil_position_fraction, 0.0, 1.0, "push.pencil_position_fraction");
+    c.NonNegative(push.pencil_gap_mm, "push.pencil_gap_mm");
+  } else {
+    c.Positive(hang.top_margin_mm, "hang.top_margin_mm");
+    c.Require(std::isfinite(hang.clamp_depth_mm) && hang.clamp_depth_mm > 0.0 &&
+                  hang.clamp_depth_mm < 0.5 * object.height_mm,
+              "hang.clamp_depth_mm", hang.clamp_depth_mm,
+              "0 < hang.clamp_depth_mm < object.height_mm / 2");
+    c.Vector(hang.initial_bend_m_s2, "hang.initial_bend_m_s2");
+    c.Require(effects.inertia_gravity.has_value(), "effects.inertia_gravity", "absent",
+              "effects.inertia_gravity is on for kind hang");
+  }
+  c.Positive(material.youngs_modulus_pa, "material.youngs_modulus_pa");
+  c.Require(std::isfinite(material.poisson_ratio) && material.poisson_ratio >= 0.0 &&
+                material.poisson_ratio < 0.5,
+            "material.poisson_ratio", material.poisson_ratio, "0 <= material.poisson_ratio < 0.5");
+  c.Positive(material.thickness_mm, "material.thickness_mm");
+  c.Positive(material.density_kg_m3, "material.density_kg_m3");
+  c.NonNegative(environment.friction_coefficient, "environment.friction_coefficient");
+  c.Positive(environment.friction_regularisation_mm_s, "environment.friction_regularisation_mm_s");
+  if (effects.plasticity) {
+    c.Positive(effects.plasticity->yield_strain, "effects.plasticity.yield_strain");
+    c.Positive(effects.plasticity->flow_rate_per_s, "effects.plasticity.flow_rate_per_s");
+  }
+  if (const auto& u = effects.uneven_stiffness) {
+    c.Require(std::isfinite(u->gradient) && u->gradient >= 0.0 && u->gradient < 1.0,
+              "effects.uneven_stiffness.gradient", u->gradient,
+              "0 <= effects.uneven_stiffness.gradient < 1");
+    c.Require(u->direction.allFinite() && u->direction.norm() > 1e-9,
+              "effects.uneven_stiffness.direction",
+              fmt::format("[{}, {}]", u->direction.x(), u->direction.y()),
+              "effects.uneven_stiffness.direction is finite and non-zero");
+    c.Require(u->gradient > 0.0 || !u->regions.empty(), "effects.uneven_stiffness.gradient",
+              u->gradient, "a gradient > 0 or at least one region");
+    for (size_t i = 0; i < u->regions.size(); ++i) {
+      const std::string key = fmt::format("effects.uneven_stiffness.regions[{}]", i);
+      const auto& region = u->regions[i];
+      c.InRange(region.centre_fraction.x(), 0.0, 1.0, key + ".centre_fraction[0]");
+      c.InRange(region.centre_fraction.y(), 0.0, 1.0, key + ".centre_fraction[1]");
+      c.Positive(region.radius_mm, key + ".radius_mm");
+      c.Positive(region.factor, key + ".factor");
+    }
+  }
+  if (effects.strain_stiffening) {
+    c.Positive(effects.strain_stiffening->coefficient, "effects.strain_stiffening.coefficient");
+  }
+  if (effects.viscoelastic) {
+    c.Require(std::isfinite(effects.viscoelastic->fraction) && effects.viscoelastic->fraction > 0.0 &&
+                  effects.viscoelastic->fraction < 1.0,
+              "effects.viscoelastic.fraction", effects.viscoelastic->fraction,
+              "0 < effects.viscoelastic.fraction < 1");
+    c.Positive(effects.viscoelastic->relaxation_time_s, "effects.viscoelastic.relaxation_time_s");
+  }
+  if (effects.strong_friction) {
+    c.Positive(effects.strong_friction->coefficient, "effects.strong_friction.coefficient");
+  }
+  if (effects.inertia_gravity) c.Vector(effects.inertia_gravity->gravity_m_s2, "effects.inertia_gravity.gravity_m_s2");
+  c.Require(camera.width_px >= 64 && camera.width_px <= 4096 && camera.width_px % 2 == 0,
+            "camera.width_px", camera.width_px, "camera.width_px even, in 64..4096");
+  c.Require(camera.height_px >= 64 && camera.height_px <= 4096 && camera.height_px % 2 == 0,
+            "camera.height_px", camera.height_px, "camera.height_px even, in 64..4096");
+  c.Colour(camera.object_rgb, "camera.object_rgb");
+  c.Colour(camera.background_rgb, "camera.background_rgb");
+  c.Colour(camera.finger_rgb, "camera.finger_rgb");
+  c.Colour(camera.pencil_rgb, "camera.pencil_rgb");
+  c.InRange(camera.lighting_gradient, 0.0, 0.5, "camera.lighting_gradient");
+  c.RequireFinite(camera.lighting_angle_deg, "camera.lighting_angle_deg");
+  c.InRange(camera.noise_sigma, 0.0, 30.0, "camera.noise_sigma");
+  c.InRange(camera.blur_sigma_px, 0.0, 5.0, "camera.blur_sigma_px");
+  c.Require(std::isfinite(camera.finger_opacity) && camera.finger_opacity > 0.0 &&
+                camera.finger_opacity <= 1.0,
+            "camera.finger_opacity", camera.finger_opacity, "0 < camera.finger_opacity <= 1");
+  c.InRange(camera.texture_contrast, 0.0, 0.6, "camera.texture_contrast");
+  c.InRange(camera.pore_size_px, 0.5, 20.0, "camera.pore_size_px");
+  c.Require(camera.video_crf >= 0 && camera.video_crf <= 51, "camera.video_crf", camera.video_crf,
+            "0 <= camera.video_crf <= 51");
+  c.NonNegative(sensor.noise_n, "sensor.noise_n");
+  c.Vector(sensor.bias_n, "sensor.bias_n");
+  c.Require(std::isfinite(simulation.fine_edge_px) && simulation.fine_edge_px >= 1.0 &&
+                simulation.fine_edge_px <= 20.0,
+            "simulation.fine_edge_px", simulation.fine_edge_px, "1 <= simulation.fine_edge_px <= 20");
+  c.Require(simulation.substeps >= 1 && simulation.substeps <= 1000, "simulation.substeps",
+            simulation.substeps, "1 <= simulation.substeps <= 1000");
+  c.Require(simulation.max_newton_iterations >= 1, "simulation.max_newton_iterations",
+            simulation.max_newton_iterations, "simulation.max_newton_iterations >= 1");
+
+  // Does the scene fit in the image?
+  if (c.ok()) {
+    const RectPx r = ObjectRectPx(*this);
+    c.Require(r.width >= 12.0 && r.height >= 12.0, "object.width_mm", object.width_mm,
+              "the object spans at least 12 px each way (width_mm, height_mm / mm_per_px)");
+    c.Require(r.x >= 2.0 && r.x + r.width <= camera.width_px - 2.0, "object.width_mm",
+              object.width_mm, "the object fits in camera.width_px with 2 px to spare");
+    c.Require(r.y >= 2.0 && r.y + r.height <= camera.height_px - 2.0, "object.height_mm",
+              object.height_mm, "the object fits in camera.height_px with 2 px to spare");
+    if (kind == ScenarioKind::kPush && c.ok()) {
+      const auto tracks = ObstacleTracksPx(*this);
+      const Disc& finger = tracks.front()[0];
+      const Disc& pencil = tracks.front()[1];
+      c.Require(finger.centre.y() - finger.radius_px >= 0.0, "push.start_gap_mm", push.start_gap_mm,
+                "the finger starts inside the image (gap + 2 radius above the object)");
+      c.Require(pencil.centre.y() + pencil.radius_px <= camera.height_px, "push.pencil_gap_mm",
+                push.pencil_gap_mm, "the pencil lies inside the image");
+    }
+  }
+  if (!c.ok() && error) *error = c.message();
+  return c.ok();
+}
+
+Scenario ParseScenario(const std::string& yaml_text, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw ScenarioError(fmt::format("{}: not valid YAML: {}", source, e.what()));
+  }
+  if (root.IsNull()) throw ScenarioError(fmt::format("{}: empty scenario file", source));
+  MapReader top(root, "", &source);
+  ScenarioKind kind = ScenarioKind::kPush;
+  if (top.Has("kind")) {
+    const YAML::Node n = top.Node("kind");
+    try {
+      if (!n.IsScalar()) throw std::invalid_argument("");
+      kind = ScenarioKindFromString(n.Scalar());
+    } catch (const std::invalid_argument&) {
+      top.Fail("kind", n, "push or hang");
+    }
+  }
+  Scenario s = DefaultScenario(kind);
+  ReadTop(top, &s);
+  std::string error;
+  if (!s.IsValid(&error)) throw ScenarioError(fmt::format("{}: {}", source, error));
+  return s;
+}
+
+Scenario LoadScenario(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw ScenarioError(fmt::format("{}: cannot open scenario file", path.string()));
+  std::stringstream text;
+  text << in.rdbuf();
+  return ParseScenario(text.str(), path.string());
+}
+
+}  // namespace calib::synth

@@ -1,0 +1,448 @@
+// The job spec: a valid spec round-trips through its canonical JSON; every
+// kind of bad input is rejected with a message naming the field, the value
+// and the rule; the search space maps the unit box to parameter values.
+
+#include "calib/jobs/job_spec.h"
+
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+
+namespace calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kValidSpec = R"yaml(
+name: push_test
+train: [rec_a]
+holdout: [rec_b]
+model:
+  effects: []
+  substeps: 12
+  integrator: verlet
+  constraint_iterations: 6
+  segmentation: {open_radius_px: 2, close_radius_px: 3, fill_holes: false}
+  mesh: {edge_length_px: 18.5}
+parameters:
+  - {name: k_D, lower: 10, upper: 1000, scale: log}
+  - {name: k_d, lower: 0, upper: 5}
+  - {name: k_A, lower: 1, upper: 500, scale: log}
+  - {name: k_phi, fixed: 0.25}
+  - {name: mass, fixed: 1}
+  - {name: tau, lower: 0, upper: 1, scale: linear}
+optimizer:
+  name: cmaes
+  settings: {population: 6, initial_sigma: 0.25}
+budget: {evaluations: 120, wall_time_s: 3600}
+seed: 42
+threads: 2
+processes: 3
+checkpoint: {every_evaluations: 24, every_seconds: 30}
+failure_policy: {mode: retry, max_retries: 2, penalty_score: 1.0e9}
+results: {store: out/push_test.sqlite, out_dir: out/push_test}
+)yaml";
+
+// A folder with two fake recordings (rec_a, rec_b: recording.json present).
+fs::path MakeJobFolder(const std::string& name) {
+  const fs::path dir = testing::ScratchDir(name);
+  for (const char* rec : {"rec_a", "rec_b"}) {
+    fs::create_directories(dir / rec);
+    std::ofstream(dir / rec / "recording.json") << "{}\n";
+  }
+  return dir;
+}
+
+// The valid spec with one edit applied, parsed; returns the error message
+// ("" when it parsed).
+std::string ErrorOf(const std::function<void(YAML::Node&)>& edit,
+                    const std::string& folder = "job_spec_errors") {
+  const fs::path dir = MakeJobFolder(folder);
+  YAML::Node root = YAML::Load(kValidSpec);
+  edit(root);
+  YAML::Emitter out;
+  out << root;
+  try {
+    ParseJobSpec(std::string(out.c_str()), "job.yaml", dir);
+  } catch (const JobSpecError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+#define EXPECT_CONTAINS(text, part) \
+  EXPECT_NE(std::string(text).find(part), std::string::npos) << "message: " << (text) << "\nmissing: " << (part)
+
+TEST(JobSpec, ValidSpecIsReadCompletely) {
+  const fs::path dir = MakeJobFolder("job_spec_valid");
+  const JobSpec spec = ParseJobSpec(std::string(kValidSpec), "job.yaml", dir);
+  EXPECT_EQ(spec.name, "push_test");
+  ASSERT_EQ(spec.train.size(), 1u);
+  EXPECT_EQ(spec.train[0], (fs::absolute(dir) / "rec_a").lexically_normal());
+  ASSERT_EQ(spec.holdout.size(), 1u);
+  EXPECT_EQ(spec.model.simulation.substeps, 12);
+  EXPECT_EQ(spec.model.simulation.integrator, IntegratorKind::kVerlet);
+  EXPECT_EQ(spec.model.simulation.constraint_iterations, 6);
+  EXPECT_EQ(spec.model.preparation.segmentation.open_radius_px, 2);
+  EXPECT_FALSE(spec.model.preparation.segmentation.fill_holes);
+  EXPECT_EQ(spec.model.preparation.mesher.edge_length_px, 18.5);
+  ASSERT_EQ(spec.parameters.size(), 6u);
+  EXPECT_EQ(spec.parameters[0].scale, ParameterScale::kLog);
+  EXPECT_EQ(*spec.parameters[3].fixed, 0.25);
+  EXPECT_EQ(spec.SearchedNames(), (std::vector<std::string>{"k_D", "k_d", "k_A", "tau"}));
+  EXPECT_EQ(spec.optimizer.name, "cmaes");
+  EXPECT_EQ(spec.optimizer.settings["population"], 6);
+  EXPECT_EQ(spec.optimizer.settings["max_evals"], 120) << "the budget fills the optimiser's own";
+  EXPECT_EQ(spec.budget.evaluations, 120);
+  EXPECT_EQ(*spec.budget.wall_time_s, 3600.0);
+  EXPECT_EQ(spec.seed, 42u);
+  EXPECT_EQ(spec.threads, 2);
+  EXPECT_EQ(spec.processes, 3);
+  EXPECT_EQ(spec.checkpoint.every_evaluations, 24);
+  EXPECT_EQ(spec.failure_policy.mode, FailureMode::kRetry);
+  EXPECT_EQ(spec.failure_policy.max_retries, 2);
+  EXPECT_EQ(*spec.failure_policy.penalty_score, 1e9);
+  EXPECT_EQ(spec.results.store, (fs::absolute(dir) / "out/push_test.sqlite").lexically_normal());
+}
+
+TEST(JobSpec, CanonicalJsonRoundTrips) {
+  const fs::path dir = MakeJobFolder("job_spec_round_trip");
+  const JobSpec spec = ParseJobSpec(std::string(kValidSpec), "job.yaml", dir);
+  const nlohmann::json canonical = ToJson(spec);
+  EXPECT_EQ(canonical["train"][0], "rec_a") << "paths are kept relative to the spec's folder";
+  const JobSpec again = ParseJobSpec(canonical, "stored spec", dir);
+  EXPECT_EQ(ToJson(again).dump(), canonical.dump());
+  EXPECT_EQ(again.train, spec.train);
+  EXPECT_EQ(again.results.store, spec.results.store);
+  // The same spec as JSON text parses to the same canonical form.
+  const JobSpec from_text = ParseJobSpec(canonical.dump(2), "job.json", dir);
+  EXPECT_EQ(ToJson(from_text), canonical);
+  const JobSpec from_tabs = ParseJobSpec(canonical.dump(1, '\t'), "job.json", dir);
+  EXPECT_EQ(ToJson(from_tabs), canonical) << "JSON indented with tabs";
+}
+
+TEST(JobSpec, DefaultsAreFilledIn) {
+  const fs::path dir = MakeJobFolder("job_spec_defaults");
+  const JobSpec spec = ParseJobSpec(std::string(R"yaml(
+name: minimal
+train: [rec_a]
+parameters:
+  - {name: k_D, lower: 1, upper: 100}
+  - {name: k_d, fixed: 0}
+  - {name: k_A, fixed: 1}
+  - {name: k_phi, fixed: 0}
+  - {name: mass, fixed: 1}
+  - {name: tau, fixed: 0}
+optimizer: {name: "nlopt:BOBYQA"}
+budget: {evaluations: 30}
+)yaml"),
+                                    "min.yaml", dir);
+  EXPECT_TRUE(spec.holdout.empty());
+  EXPECT_EQ(spec.model.simulation.substeps, 10);
+  EXPECT_EQ(spec.seed, 1u);
+  EXPECT_EQ(spec.threads, 0);
+  EXPECT_EQ(spec.optimizer.settings["maxeval"], 30);
+  EXPECT_EQ(spec.failure_policy.mode, FailureMode::kPenalty);
+  EXPECT_EQ(spec.failure_policy.abort_after, 0);
+  EXPECT_EQ(spec.results.store, (fs::absolute(dir) / "results/minimal.sqlite").lexically_normal());
+  EXPECT_EQ(spec.results.out_dir, (fs::absolute(dir) / "results/minimal").lexically_normal());
+}
+
+TEST(JobSpec, LoadResolvesPathsAgainstTheFileFolder) {
+  const fs::path dir = MakeJobFolder("job_spec_load");
+  fs::create_directories(dir / "specs");
+  std::string text = kValidSpec;
+  text.replace(text.find("[rec_a]"), 7, "[../rec_a]");
+  text.replace(text.find("[rec_b]"), 7, "[../rec_b]");
+  std::ofstream(dir / "specs" / "job.yaml") << text;
+  const JobSpec spec = LoadJobSpec(dir / "specs" / "job.yaml");
+  EXPECT_EQ(spec.train[0], (fs::absolute(dir) / "rec_a").lexically_normal());
+  EXPECT_EQ(spec.source, (dir / "specs" / "job.yaml").string());
+  EXPECT_EQ(ToJson(spec)["train"][0], "../rec_a");
+}
+
+TEST(JobSpec, UnreadableFileIsNamed) {
+  try {
+    LoadJobSpec(testing::ScratchDir("job_spec_absent") / "absent.yaml");
+    FAIL() << "no error";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "absent.yaml");
+  }
+}
+
+TEST(JobSpec, InvalidYamlIsNamed) {
+  try {
+    ParseJobSpec(std::string("name: [unclosed"), "broken.yaml", ".");
+    FAIL() << "no error";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "broken.yaml");
+  }
+}
+
+TEST(JobSpec, MissingFieldIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r.remove("budget"); });
+  EXPECT_CONTAINS(m, "job.yaml: budget: missing");
+  const std::string n = ErrorOf([](YAML::Node& r) { r["optimizer"].remove("name"); });
+  EXPECT_CONTAINS(n, "optimizer.name: missing");
+}
+
+TEST(JobSpec, WrongTypeIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["budget"]["evaluations"] = "many"; });
+  EXPECT_CONTAINS(m, "budget.evaluations = 'many': expected an integer");
+  const std::string n = ErrorOf([](YAML::Node& r) { r["parameters"][1]["upper"] = "high"; });
+  EXPECT_CONTAINS(n, "parameters[1].upper = 'high': expected a number");
+  const std::string t = ErrorOf([](YAML::Node& r) { r["train"] = "rec_a"; });
+  EXPECT_CONTAINS(t, "train = 'rec_a': expected a list");
+}
+
+TEST(JobSpec, UnknownKeyIsNamedWithASuggestion) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["optimiser"] = r["optimizer"]; });
+  EXPECT_CONTAINS(m, "job.yaml: optimiser = {name: cmaes, ");
+  EXPECT_CONTAINS(m, "unknown key");
+  EXPECT_CONTAINS(m, "did you mean 'optimizer'?");
+  const std::string n = ErrorOf([](YAML::Node& r) { r["parameters"][1]["uper"] = 4; });
+  EXPECT_CONTAINS(n, "parameters[1].uper = '4': unknown key");
+  EXPECT_CONTAINS(n, "did you mean 'upper'?");
+  const std::string t = ErrorOf([](YAML::Node& r) { r["sed"] = 3; });
+  EXPECT_CONTAINS(t, "sed = '3': unknown key");
+  EXPECT_CONTAINS(t, "did you mean 'seed'?");
+}
+
+TEST(JobSpec, ReversedBoundsAreNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) {
+    r["parameters"][2]["lower"] = 50;
+    r["parameters"][2]["upper"] = 5;
+  });
+  EXPECT_CONTAINS(m, "parameters[2].upper = '5': must be > parameters[2].lower (50)");
+}
+
+TEST(JobSpec, LogScaleNeedsPositiveLowerBound) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["parameters"][0]["lower"] = 0; });
+  EXPECT_CONTAINS(m, "parameters[0].lower = '0': must be > 0 on a log scale");
+}
+
+TEST(JobSpec, BoundsOutsideTheAllowedRangeAreNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["parameters"][5]["upper"] = 2; });
+  EXPECT_CONTAINS(m, "parameters[5].upper = '2': must be within tau's allowed range [0, 1]");
+  const std::string f = ErrorOf([](YAML::Node& r) { r["parameters"][4]["fixed"] = 0; });
+  EXPECT_CONTAINS(f, "parameters[4].fixed = '0': must be within mass's allowed range (0");
+  const std::string s = ErrorOf([](YAML::Node& r) { r["parameters"][4]["lower"] = 1; });
+  EXPECT_CONTAINS(s, "parameters[4].lower = '1': a fixed parameter takes no lower");
+  const std::string inf = ErrorOf([](YAML::Node& r) { r["parameters"][1]["upper"] = ".inf"; });
+  EXPECT_CONTAINS(inf, "parameters[1].upper = '.inf': must be finite");
+}
+
+TEST(JobSpec, ParameterNeitherSearchedNorFixedIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["parameters"].remove(5); });
+  EXPECT_CONTAINS(m, "parameters ('tau'): missing");
+  EXPECT_CONTAINS(m, "searched or fixed");
+  const std::string n = ErrorOf([](YAML::Node& r) { r["parameters"][5].remove("upper"); });
+  EXPECT_CONTAINS(n, "parameters[5].upper: missing");
+}
+
+TEST(JobSpec, UnknownAndDuplicateParametersAreNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) {
+    YAML::Node p;
+    p["name"] = "k_X";
+    p["fixed"] = 1;
+    r["parameters"].push_back(p);
+  });
+  EXPECT_CONTAINS(m, "parameters[6].name = 'k_X': unknown parameter");
+  const std::string d = ErrorOf([](YAML::Node& r) { r["parameters"][1]["name"] = "k_D"; });
+  EXPECT_CONTAINS(d, "parameters[1].name = 'k_D': parameter listed twice");
+  const std::string s = ErrorOf([](YAML::Node& r) { r["parameters"][1]["scale"] = "cubic"; });
+  EXPECT_CONTAINS(s, "parameters[1].scale = 'cubic': must be linear or log");
+}
+
+TEST(JobSpec, UnknownOptimiserIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["optimizer"]["name"] = "simplex"; });
+  EXPECT_CONTAINS(m, "optimizer.name = 'simplex': unknown optimiser");
+  EXPECT_CONTAINS(m, "cmaes");
+}
+
+TEST(JobSpec, BadOptimiserSettingIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["optimizer"]["settings"]["population"] = 1; });
+  EXPECT_CONTAINS(m, "optimizer.settings");
+  EXPECT_CONTAINS(m, "population");
+  const std::string u = ErrorOf([](YAML::Node& r) { r["optimizer"]["settings"]["sigma"] = 0.2; });
+  EXPECT_CONTAINS(u, "optimizer.settings");
+  EXPECT_CONTAINS(u, "sigma");
+}
+
+TEST(JobSpec, BadBudgetIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["budget"]["evaluations"] = 0; });
+  EXPECT_CONTAINS(m, "budget.evaluations = '0': must be >= 1");
+  const std::string w = ErrorOf([](YAML::Node& r) { r["budget"]["wall_time_s"] = -5; });
+  EXPECT_CONTAINS(w, "budget.wall_time_s = '-5': must be > 0");
+}
+
+TEST(JobSpec, MissingRecordingFolderIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) { r["train"][0] = "nope"; });
+  EXPECT_CONTAINS(m, "train[0] = 'nope': recording folder");
+  EXPECT_CONTAINS(m, "does not exist");
+  const std::string h = ErrorOf([](YAML::Node& r) { r["holdout"].push_back("."); });
+  EXPECT_CONTAINS(h, "holdout[1] = '.'");
+  EXPECT_CONTAINS(h, "no recording.json");
+}
+
+TEST(JobSpec, OtherRulesAreNamed) {
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["name"] = "a b"; }), "name = 'a b'");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["threads"] = -1; }), "threads = '-1': must be >= 0");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["seed"] = -1; }), "seed = '-1'");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["substeps"] = 0; }),
+                  "model.substeps = '0': must be >= 1");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["integrator"] = "rk4"; }),
+                  "model.integrator = 'rk4': must be first_order or verlet");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["effects"].push_back("magnetism"); }),
+                  "model.effects[0] = 'magnetism': unknown model effect");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["failure_policy"]["mode"] = "ignore"; }),
+                  "failure_policy.mode = 'ignore'");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["failure_policy"]["mode"] = "penalty"; }),
+                  "failure_policy.max_retries = '2': only used with mode retry");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) {
+                    r["checkpoint"]["every_evaluations"] = 0;
+                    r["checkpoint"]["every_seconds"] = 0;
+                  }),
+                  "checkpoint = ");
+}
+
+TEST(JobSpec, EffectsAddTheirParameters) {
+  ModelCatalog catalog = DefaultModelCatalog();
+  catalog.effects["test_effect"] = {{"yield", "1", "plastic yield strain", 0.0, 1.0, false}};
+  const fs::path dir = MakeJobFolder("job_spec_effects");
+  YAML::Node root = YAML::Load(kValidSpec);
+  root["model"]["effects"].push_back("test_effect");
+  YAML::Emitter out;
+  out << root;
+  JobSpecParseOptions options;
+  options.catalog = &catalog;
+  try {
+    ParseJobSpec(std::string(out.c_str()), "job.yaml", dir, options);
+    FAIL() << "the effect's parameter is neither searched nor fixed";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "parameters ('yield'): missing");
+  }
+  YAML::Node p;
+  p["name"] = "yield";
+  p["lower"] = 0.01;
+  p["upper"] = 0.5;
+  root["parameters"].push_back(p);
+  YAML::Emitter out2;
+  out2 << root;
+  const JobSpec spec = ParseJobSpec(std::string(out2.c_str()), "job.yaml", dir, options);
+  EXPECT_EQ(spec.parameter_specs.size(), 7u);
+  EXPECT_EQ(SearchSpace(spec).dimension(), 5);
+}
+
+TEST(JobSpec, TheDefaultCatalogueHoldsCoresEffects) {
+  const ModelCatalog& catalog = DefaultModelCatalog();
+  EXPECT_EQ(catalog.base.size(), BaseModelParameterSpecs().size());
+  ASSERT_FALSE(catalog.effects.empty());
+  const auto& [effect, specs] = *catalog.effects.begin();
+  ASSERT_FALSE(specs.empty());
+  const std::string m =
+      ErrorOf([&](YAML::Node& r) { r["model"]["effects"].push_back(effect); }, "job_spec_core_effect");
+  EXPECT_CONTAINS(m, "parameters ('" + specs[0].name + "'): missing");
+}
+
+TEST(SearchSpace, MapsTheUnitBoxToParametersAndBack) {
+  const fs::path dir = MakeJobFolder("search_space");
+  const JobSpec spec = ParseJobSpec(std::string(kValidSpec), "job.yaml", dir);
+  const SearchSpace space(spec);
+  ASSERT_EQ(space.dimension(), 4);
+  EXPECT_EQ(space.names(), spec.SearchedNames());
+  const search::Bounds b = space.UnitBounds();
+  EXPECT_EQ(b.lower, std::vector<double>(4, 0.0));
+  EXPECT_EQ(b.upper, std::vector<double>(4, 1.0));
+
+  // Corners are the bounds exactly; fixed parameters ride along.
+  const std::vector<double> zero(4, 0.0), one(4, 1.0);
+  const ParameterValues lo = space.ToParameters(zero), hi = space.ToParameters(one);
+  EXPECT_EQ(lo.at("k_D"), 10.0);
+  EXPECT_EQ(hi.at("k_D"), 1000.0);
+  EXPECT_EQ(hi.at("k_A"), 500.0);
+  EXPECT_EQ(lo.at("k_phi"), 0.25);
+  EXPECT_EQ(lo.at("mass"), 1.0);
+  EXPECT_EQ(lo.size(), 6u);
+
+  // Log scale: the middle of the box is the geometric mean.
+  const std::vector<double> mid(4, 0.5);
+  const ParameterValues m = space.ToParameters(mid);
+  EXPECT_NEAR(m.at("k_D"), 100.0, 1e-9);
+  EXPECT_NEAR(m.at("k_d"), 2.5, 1e-15);
+  EXPECT_NEAR(m.at("tau"), 0.5, 1e-15);
+
+  // Round trips, both ways.
+  for (double t : {0.0, 0.1, 0.37, 0.5, 0.9, 1.0}) {
+    const std::vector<double> u = {t, 1.0 - t, t * t, 0.5 * t};
+    const std::vector<double> back = space.ToUnit(space.ToParameters(u));
+    for (int i = 0; i < 4; ++i) EXPECT_NEAR(back[i], u[i], 1e-12) << "t " << t << " axis " << i;
+  }
+  ParameterValues v = lo;
+  v["k_D"] = 314.0;
+  v["k_A"] = 2.0;
+  v["k_d"] = 1.25;
+  v["tau"] = 0.75;
+  const ParameterValues again = space.ToParameters(space.ToUnit(v));
+  for (const auto& [name, value] : v) EXPECT_NEAR(again.at(name), value, 1e-12 * std::abs(value)) << name;
+
+  // Every mapped point is valid for the model.
+  EXPECT_NO_THROW(ValidateParameters(m, spec.parameter_specs, "mapped"));
+  // Out-of-box points are clamped into the bounds.
+  EXPECT_EQ(space.ToParameters(std::vector<double>{-1.0, 2.0, 0.0, 0.0}).at("k_D"), 10.0);
+  EXPECT_THROW(space.ToParameters(std::vector<double>{0.5}), std::invalid_argument);
+}
+
+TEST(SearchSpace, TheJobOptimiserSearchesTheUnitBox) {
+  const fs::path dir = MakeJobFolder("search_space_optimizer");
+  const JobSpec spec = ParseJobSpec(std::string(kValidSpec), "job.yaml", dir);
+  search::CheckedOptimizer opt = MakeJobOptimizer(spec);
+  EXPECT_EQ(opt.name(), "cmaes");
+  EXPECT_EQ(opt.dimension(), 4);
+  const std::vector<search::Candidate> batch = opt.Ask(100);
+  ASSERT_EQ(batch.size(), 6u) << "one generation of population 6";
+  const SearchSpace space(spec);
+  for (const auto& c : batch) {
+    EXPECT_NO_THROW(ValidateParameters(space.ToParameters(c.x), spec.parameter_specs, "candidate"));
+  }
+}
+
+TEST(JobSpec, CheckRecordingsNamesTheFieldOfABadRecording) {
+  const fs::path dir = MakeJobFolder("job_spec_check_recordings");
+  const JobSpec spec = ParseJobSpec(std::string(kValidSpec), "job.yaml", dir);
+  try {
+    CheckRecordings(spec);  // rec_a's recording.json is an empty object
+    FAIL() << "a recording without its keys was accepted";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "job.yaml: train[0] = '");
+    EXPECT_CONTAINS(e.what(), "recording.json");
+  }
+}
+
+TEST(JobSpec, CheckRecordingsAcceptsTheBundledExample) {
+  const fs::path dir = testing::ScratchDir("job_spec_bundled");
+  std::string text = kValidSpec;
+  const std::string example = (fs::path(CALIB_SOURCE_DIR) / "examples/push_centre").string();
+  text.replace(text.find("[rec_a]"), 7, "[" + example + "]");
+  text.replace(text.find("[rec_b]"), 7, "[]");
+  const JobSpec spec = ParseJobSpec(text, "job.yaml", dir);
+  EXPECT_NO_THROW(CheckRecordings(spec));
+}
+
+TEST(JobSpec, ExampleSpecParses) {
+  const fs::path path = fs::path(CALIB_SOURCE_DIR) / "examples/jobs/push_centre_cmaes.yaml";
+  JobSpecParseOptions options;
+  options.recordings = RecordingCheck::kNone;  // the example recordings may be regenerating
+  const JobSpec spec = LoadJobSpec(path, options);
+  EXPECT_EQ(spec.train[0], (fs::path(CALIB_SOURCE_DIR) / "examples/push_centre").lexically_normal());
+  EXPECT_EQ(spec.optimizer.name, "cmaes");
+  EXPECT_EQ(spec.holdout.size(), 1u);
+}
+
+}  // namespace
+}  // namespace calib
