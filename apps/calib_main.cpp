@@ -7,6 +7,7 @@
 #include "calib/synth/scenario.h"
 #include "calib/synth/synthesize.h"
 #include "job_cli.h"
+#include "loop_cli.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -103,11 +104,15 @@ int main(int argc, char** argv) {
   synth->add_option("--out", synth_out, "recording folder to write")->required();
 
   const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best
+  const auto loop_cli = calib::cli::AddLoopSubcommand(app);
 
   CLI11_PARSE(app, argc, argv);
 
   try {
     if (const auto status = calib::cli::RunChosenJobSubcommand(*job_cli, argc, argv)) {
+      return *status;
+    }
+    if (const auto status = calib::cli::RunChosenLoopSubcommand(*loop_cli, argc, argv)) {
       return *status;
     }
     Finish(&settings, integrator, cache_dir, no_cache);

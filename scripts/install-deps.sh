@@ -15,6 +15,7 @@ packages=(
   libsqlite3-dev sqlite3
   libcsv-dev
   libopenmpi-dev openmpi-bin
+  gnuplot-nox
 )
 
 missing=()

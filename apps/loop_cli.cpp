@@ -1,0 +1,120 @@
+#include "loop_cli.h"
+
+#include "calib/jobs/loop.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace calib::cli {
+
+struct LoopCli {
+  CLI::App* loop = nullptr;
+  std::vector<std::filesystem::path> train;
+  std::vector<std::filesystem::path> holdout;
+  std::filesystem::path out;
+  uint64_t seed = 1;
+  int64_t budget = 160;
+  int64_t effect_budget = 0;
+  int threads = 0;
+  std::string optimizer = "cmaes";
+  int max_effects = 2;
+  int tries = 3;
+  double min_confidence = 0.05;
+  int overlays = 2;
+  std::string cache_dir;
+  bool no_cache = false;
+  bool no_html = false;
+  bool quiet = false;
+};
+
+std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
+  auto cli = std::make_shared<LoopCli>();
+  CLI::App* cmd = app.add_subcommand(
+      "loop",
+      "calibrate the base model, trace its residual to missing effects, add them while they "
+      "lower the held-out error; write report.json and report.html (docs/loop.md)");
+  cli->loop = cmd;
+  cmd->add_option("--train", cli->train, "training recording folders (fitted)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--holdout", cli->holdout,
+                  "held-out recording folders (decide which effects are kept; never fitted)")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--out", cli->out, "report folder (report.json, report.html, store.sqlite)")
+      ->required();
+  cmd->add_option("--seed", cli->seed, "seed of every calibration")->capture_default_str();
+  cmd->add_option("--budget", cli->budget, "evaluations of the base model's calibration")
+      ->check(CLI::Range(int64_t{2}, int64_t{100000000}))
+      ->capture_default_str();
+  cmd->add_option("--effect-budget", cli->effect_budget,
+                  "evaluations of each calibration with an effect added (0: --budget)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--threads", cli->threads, "OpenMP threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--optimizer", cli->optimizer,
+                  "optimiser (cmaes, genetic, annealing, random, nlopt:NAME, grid); cmaes and "
+                  "nlopt warm-start each effect from the previous best")
+      ->capture_default_str();
+  cmd->add_option("--max-effects", cli->max_effects, "effects kept at most")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--tries", cli->tries, "hypotheses recalibrated per round, best ranked first")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--min-confidence", cli->min_confidence,
+                  "hypotheses below this confidence are not tried")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--overlays", cli->overlays,
+                  "overlay frames per recording at the worst moments (base and final model)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--cache-dir", cli->cache_dir, "segmentation cache folder");
+  cmd->add_flag("--no-cache", cli->no_cache, "do not read or write the segmentation cache");
+  cmd->add_flag("--no-html", cli->no_html, "write report.json only");
+  cmd->add_flag("--quiet", cli->quiet, "no progress lines");
+  return cli;
+}
+
+std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) {
+  if (cli.loop == nullptr || !*cli.loop) return std::nullopt;
+  LoopOptions options;
+  options.train = cli.train;
+  options.holdout = cli.holdout;
+  options.out_dir = cli.out;
+  options.seed = cli.seed;
+  options.budget = cli.budget;
+  options.effect_budget = cli.effect_budget;
+  options.threads = cli.threads;
+  options.optimizer = cli.optimizer;
+  options.max_effects = cli.max_effects;
+  options.tries_per_round = cli.tries;
+  options.min_confidence = cli.min_confidence;
+  options.overlays_per_recording = cli.overlays;
+  options.write_html = !cli.no_html;
+  if (cli.no_cache) {
+    options.preparation.cache_dir.clear();
+  } else if (!cli.cache_dir.empty()) {
+    options.preparation.cache_dir = cli.cache_dir;
+  }
+  std::string command;
+  for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
+  options.command = command;
+  LoopLog log;
+  if (!cli.quiet) log = [](const std::string& line) { spdlog::info("{}", line); };
+  const LoopResult result = RunLoop(options, log);
+  fmt::print("\n{}", result.table);
+  fmt::print("run time: {:.1f} s\n", result.report.run_time_s);
+  fmt::print("report: {}\n", result.report_json.string());
+  if (!result.report_html.empty()) fmt::print("report: {}\n", result.report_html.string());
+  fmt::print("results store: {}\n", result.store.string());
+  return 0;
+}
+
+}  // namespace calib::cli

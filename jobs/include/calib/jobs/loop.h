@@ -1,0 +1,134 @@
+#pragma once
+// The closed loop behind `calib loop`: calibrate the base model, analyse the
+// residual of the best fit on every recording, trace it to ranked effect
+// hypotheses, add the most promising effects one at a time, recalibrate,
+// keep an effect only when it lowers the held-out error by more than noise
+// and extra parameters explain, and report everything (report.json,
+// report.html, a before / after table). Documented in docs/loop.md.
+//
+// Each calibration is a job of the results store DIR/store.sqlite (the
+// runner of runner.h, OpenMP threads, in process), named after its model
+// ("base", "base+viscoelastic", ...). Everything the loop decides depends
+// only on the recordings, the options and the seed: the same inputs give the
+// same report numbers at any thread count.
+//
+// The loop never reads what a recording does not declare: recording.json,
+// track.csv and the video only (a synthetic recording's truth.json is never
+// opened).
+
+#include "calib/core/parameters.h"
+#include "calib/core/simulator.h"
+#include "calib/evaluator/evaluation.h"
+#include "calib/evaluator/hypotheses.h"
+#include "calib/evaluator/residual.h"
+#include "calib/jobs/job_spec.h"
+#include "calib/jobs/objective.h"
+#include "calib/results/loop_report.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace calib {
+
+struct LoopOptions {
+  std::vector<std::filesystem::path> train;    ///< >= 1 recording folders (fitted)
+  std::vector<std::filesystem::path> holdout;  ///< recording folders (decide, never fitted)
+  std::filesystem::path out_dir;               ///< report.json, report.html, store.sqlite, overlays/
+  uint64_t seed = 1;
+  /// Evaluations of the base model's calibration.
+  int64_t budget = 160;
+  /// Evaluations of each calibration with an effect added; 0: `budget`.
+  int64_t effect_budget = 0;
+  int threads = 0;                 ///< OpenMP threads; 0: all cores
+  std::string optimizer = "cmaes";  ///< a search::OptimizerNames() name
+  int max_effects = 2;             ///< effects kept at most
+  /// Hypotheses tried (recalibrated) per round, best ranked first.
+  int tries_per_round = 3;
+  /// A hypothesis below this confidence is not tried (hypotheses.h: 0 means
+  /// no residual worth explaining, or the recording cannot show it).
+  double min_confidence = 0.05;
+  /// Criterion: the held-out XOR sum must drop by more than
+  /// noise_factor x (1 + extra parameters) x the held-out recordings'
+  /// segmentation noise (flicker pixels summed over their frames), and by
+  /// more than min_relative_gain of itself. See docs/loop.md.
+  double noise_factor = 1.0;
+  double min_relative_gain = 0.01;
+  SimulationOptions simulation;
+  PreparationOptions preparation;
+  /// Report: overlay PNGs of the worst frames (base and final model).
+  int overlays_per_recording = 2;
+  bool write_html = true;
+  std::string command;  ///< the command line, for the report
+
+  /// False with a message naming the option and the rule.
+  bool IsValid(std::string* error) const;
+};
+
+/// What one calibration of the loop searches: the parameter settings (a
+/// box, or fixed) for `effects` on top of the base model. The boxes of the
+/// effects' parameters scale with what the recordings show (peak force,
+/// frame rate, duration, mm per pixel) and with the previous best base
+/// values (`reference`: k_D for the stiffening coefficient).
+struct LoopScales {
+  double peak_force = 0.0;       ///< largest |force| of the training tracks; 0: no sensor
+  double fps = 30.0;             ///< of the first training recording
+  double duration_s = 1.0;       ///< longest training recording
+  double mm_per_px = 0.0;        ///< 0: unknown
+};
+std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::string>& effects,
+                                                    const LoopScales& scales,
+                                                    const ParameterValues& reference);
+
+/// The value of each effect parameter that leaves the model (nearly) as it
+/// was without the effect; the warm start of a new effect.
+double NeutralValue(const ParameterSetting& setting);
+
+/// The calibration objective of a model with effects: the XOR pixels summed
+/// over every training recording and frame (RecordingObjective for any
+/// ModelDefinition; each worker owns one Evaluator per recording).
+class ModelObjective final : public Objective {
+ public:
+  ModelObjective(std::vector<std::shared_ptr<const PreparedRecording>> recordings,
+                 SimulationOptions options, ModelDefinition model);
+  std::unique_ptr<ObjectiveWorker> MakeWorker() const override;
+  std::string Describe() const override;
+
+ private:
+  std::vector<std::shared_ptr<const PreparedRecording>> recordings_;
+  SimulationOptions options_;
+  ModelDefinition model_;
+};
+
+/// Segmentation noise of a recording: per frame, the object pixels that
+/// differ from both neighbouring frames while those agree (one-frame
+/// flicker, which no motion smoother than the frame rate makes). Returns the
+/// mean over frames 1..n-2 (0 with fewer than 3 frames).
+double SegmentationNoisePx(const std::vector<BitMask>& object_masks);
+
+/// Progress lines for people (stage started, calibrated, decided); called
+/// on the loop's thread. Presentation only.
+using LoopLog = std::function<void(const std::string& line)>;
+
+struct LoopResult {
+  LoopReport report;
+  std::filesystem::path report_json;
+  std::filesystem::path report_html;  ///< empty when not written
+  std::filesystem::path store;
+  /// The before / after table as text (what `calib loop` prints).
+  std::string table;
+};
+
+/// Runs the loop. Throws for bad options (std::invalid_argument naming the
+/// option), unreadable recordings (RecordingError / JobSpecError naming
+/// them) and store errors.
+LoopResult RunLoop(const LoopOptions& options, const LoopLog& log = {});
+
+/// The before / after table of a report: per recording its role and the XOR
+/// sum and mean IoU of the base and the final model, then the effects kept.
+std::string BeforeAfterTable(const LoopReport& report);
+
+}  // namespace calib

@@ -1,0 +1,880 @@
+// The closed loop (loop.h, docs/loop.md).
+
+#include "calib/jobs/loop.h"
+
+#include "calib/core/model_definition.h"
+#include "calib/jobs/batch_evaluator.h"
+#include "calib/jobs/runner.h"
+#include "calib/results/report_html.h"
+#include "calib/results/report_overlays.h"
+#include "calib/results/store.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <utility>
+
+namespace calib {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// =========================================================================
+// Options.
+
+bool LoopOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& message) {
+    *error = message;
+    return false;
+  };
+  if (train.empty()) return fail("loop: --train needs at least one recording folder");
+  if (out_dir.empty()) return fail("loop: --out (the report folder) is required");
+  if (budget < 2) return fail(fmt::format("loop: --budget = {}: must be >= 2", budget));
+  if (effect_budget < 0) {
+    return fail(fmt::format("loop: effect budget = {}: must be >= 0", effect_budget));
+  }
+  if (threads < 0) return fail(fmt::format("loop: --threads = {}: must be >= 0", threads));
+  if (max_effects < 0) return fail(fmt::format("loop: --max-effects = {}: must be >= 0", max_effects));
+  if (tries_per_round < 1) {
+    return fail(fmt::format("loop: --tries = {}: must be >= 1", tries_per_round));
+  }
+  if (!(min_confidence >= 0.0 && min_confidence <= 1.0)) {
+    return fail(fmt::format("loop: --min-confidence = {}: must be in [0, 1]", min_confidence));
+  }
+  if (!(noise_factor >= 0.0) || !std::isfinite(noise_factor)) {
+    return fail(fmt::format("loop: noise factor = {}: must be finite and >= 0", noise_factor));
+  }
+  if (!(min_relative_gain >= 0.0 && min_relative_gain < 1.0)) {
+    return fail(fmt::format("loop: minimum relative gain = {}: must be in [0, 1)", min_relative_gain));
+  }
+  if (overlays_per_recording < 0) {
+    return fail(fmt::format("loop: overlays per recording = {}: must be >= 0",
+                            overlays_per_recording));
+  }
+  std::string sub;
+  if (!simulation.IsValid(&sub)) return fail("loop: simulation options: " + sub);
+  if (!preparation.IsValid(&sub)) return fail("loop: preparation options: " + sub);
+  return true;
+}
+
+// =========================================================================
+// Search boxes.
+
+namespace {
+
+ParameterSetting Searched(const std::string& name, double lower, double upper,
+                          ParameterScale scale) {
+  ParameterSetting s;
+  s.name = name;
+  s.lower = lower;
+  s.upper = upper;
+  s.scale = scale;
+  return s;
+}
+
+ParameterSetting Fixed(const std::string& name, double value) {
+  ParameterSetting s;
+  s.name = name;
+  s.fixed = value;
+  return s;
+}
+
+double Finite(double v, double fallback) { return std::isfinite(v) && v > 0.0 ? v : fallback; }
+
+}  // namespace
+
+std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::string>& effects,
+                                                    const LoopScales& scales,
+                                                    const ParameterValues& reference) {
+  using enum ParameterScale;
+  // The base model: with the first-order integrator only stiffness / mass
+  // ratios matter, so the mass is fixed and the stiffnesses are searched on
+  // wide log scales (a wider box than the bundled example job's: effects
+  // move the best stiffnesses).
+  std::vector<ParameterSetting> out = {
+      Searched("k_D", 10, 1e5, kLog),      Searched("k_d", 1e-3, 100, kLog),
+      Searched("k_A", 0.1, 1e5, kLog),     Searched("k_phi", 0.01, 1e4, kLog),
+      Fixed("mass", 0.2),                  Searched("tau", 0, 0.5, kLinear)};
+  const double force = Finite(scales.peak_force, 1.0);
+  const double fps = Finite(scales.fps, 30.0);
+  const double duration = Finite(scales.duration_s, 1.0);
+  // Gravity 9.81 m/s^2 in pixels; an unknown scale is taken as 0.25 mm/px
+  // (the box reaches twice that, so any scale down to 0.125 mm/px fits).
+  const double g_px = 9810.0 / Finite(scales.mm_per_px, 0.25);
+  auto ref = [&](const char* name, double fallback) {
+    const auto it = reference.find(name);
+    return it != reference.end() ? Finite(it->second, fallback) : fallback;
+  };
+  const double k_d = ref("k_D", 100.0);
+  for (const std::string& effect : effects) {
+    if (effect == "inertia") {
+      out.push_back(Searched("inertia_damping_per_s", 0.1, 2.0 * fps, kLog));
+      out.push_back(Searched("gravity_px_s2", 0.0, 2.0 * g_px, kLinear));
+      out.push_back(Searched("gravity_angle_deg", -180.0, 180.0, kLinear));
+    } else if (effect == "table_friction") {
+      out.push_back(Searched("friction_force", 1e-3 * force, 2.0 * force, kLog));
+    } else if (effect == "plasticity") {
+      out.push_back(Searched("plastic_yield_strain", 0.005, 0.5, kLog));
+      out.push_back(Searched("plastic_rate_per_s", 0.05, 50.0, kLog));
+    } else if (effect == "uneven_stiffness") {
+      out.push_back(Searched("uneven_gradient", 0.0, 0.9, kLinear));
+      out.push_back(Searched("uneven_angle_deg", -180.0, 180.0, kLinear));
+    } else if (effect == "strain_stiffening") {
+      out.push_back(Searched("stiffening_k3", 1e-2 * k_d, 1e4 * k_d, kLog));
+    } else if (effect == "viscoelastic") {
+      out.push_back(Searched("visco_share", 0.0, 0.9, kLinear));
+      out.push_back(Searched("visco_time_s", 1.0 / fps, std::max(2.0 * duration, 10.0 / fps), kLog));
+    } else if (effect == "push_relaxation") {
+      out.push_back(Searched("push_friction_force", 1e-3 * force, 2.0 * force, kLog));
+    } else {
+      throw std::invalid_argument(
+          fmt::format("loop: effect '{}' has no search box (known: {})", effect, EffectNames()));
+    }
+  }
+  return out;
+}
+
+double NeutralValue(const ParameterSetting& s) {
+  if (s.fixed) return *s.fixed;
+  // Parameters whose neutral value is not their lower bound.
+  if (s.name == "inertia_damping_per_s") return s.upper;  // overdamped: closest to first order
+  if (s.name == "gravity_angle_deg") return 90.0;          // down the image (irrelevant at g = 0)
+  if (s.name == "uneven_angle_deg") return 0.0;            // irrelevant at gradient 0
+  // Where the effect's strength is 0, its other parameters start in the
+  // middle of their (log) box, where the search can reach any value.
+  if (s.name == "plastic_yield_strain") return std::sqrt(s.lower * s.upper);
+  if (s.name == "visco_time_s") return std::sqrt(s.lower * s.upper);  // irrelevant at share 0
+  return s.lower;
+}
+
+// =========================================================================
+// The objective of a model with effects.
+
+namespace {
+
+std::string RecordingName(const PreparedRecording& prepared) {
+  std::string name = prepared.recording.folder.filename().string();
+  if (name.empty()) name = prepared.recording.folder.parent_path().filename().string();
+  return name.empty() ? prepared.recording.folder.string() : name;
+}
+
+class ModelWorker final : public ObjectiveWorker {
+ public:
+  ModelWorker(const std::vector<std::shared_ptr<const PreparedRecording>>& recordings,
+              const SimulationOptions& options, const ModelDefinition& model) {
+    evaluators_.reserve(recordings.size());
+    for (const auto& prepared : recordings) {
+      evaluators_.emplace_back(*prepared, options, model);
+      names_.push_back(RecordingName(*prepared));
+      frames_total_ += prepared->scene.num_frames;
+    }
+  }
+
+  ObjectiveResult Evaluate(const ParameterValues& values) override {
+    results_.clear();
+    for (Evaluator& evaluator : evaluators_) {
+      results_.push_back(evaluator.Evaluate(values));
+      if (!results_.back().ok()) break;
+    }
+    ObjectiveResult result = CombineRecordingResults(results_, names_);
+    result.iou.frames_total = frames_total_;
+    return result;
+  }
+
+ private:
+  std::vector<Evaluator> evaluators_;
+  std::vector<std::string> names_;
+  std::vector<EvaluationResult> results_;
+  int frames_total_ = 0;
+};
+
+}  // namespace
+
+ModelObjective::ModelObjective(std::vector<std::shared_ptr<const PreparedRecording>> recordings,
+                               SimulationOptions options, ModelDefinition model)
+    : recordings_(std::move(recordings)), options_(options), model_(std::move(model)) {
+  if (recordings_.empty()) {
+    throw std::invalid_argument("the objective needs at least one training recording");
+  }
+  std::string error;
+  if (!options_.IsValid(&error)) throw std::invalid_argument(error);
+  if (!model_.IsValid(&error)) throw std::invalid_argument(error);
+}
+
+std::unique_ptr<ObjectiveWorker> ModelObjective::MakeWorker() const {
+  return std::make_unique<ModelWorker>(recordings_, options_, model_);
+}
+
+std::string ModelObjective::Describe() const {
+  int frames = 0;
+  for (const auto& r : recordings_) frames += r->scene.num_frames;
+  return fmt::format("model {}, {} training recording{}, {} frames", model_.ToString(),
+                     recordings_.size(), recordings_.size() == 1 ? "" : "s", frames);
+}
+
+// =========================================================================
+// Segmentation noise.
+
+double SegmentationNoisePx(const std::vector<BitMask>& masks) {
+  if (masks.size() < 3) return 0.0;
+  std::vector<double> flicker;
+  for (size_t f = 1; f + 1 < masks.size(); ++f) {
+    const auto& a = masks[f - 1].words();
+    const auto& b = masks[f].words();
+    const auto& c = masks[f + 1].words();
+    if (a.size() != b.size() || b.size() != c.size()) {
+      throw std::invalid_argument(
+          fmt::format("segmentation noise: masks {} .. {} differ in shape", f - 1, f + 1));
+    }
+    int64_t n = 0;
+    for (size_t w = 0; w < b.size(); ++w) n += std::popcount((a[w] ^ b[w]) & ~(a[w] ^ c[w]));
+    flicker.push_back(static_cast<double>(n));
+  }
+  double sum = 0.0;
+  for (double v : flicker) sum += v;
+  return sum / static_cast<double>(flicker.size());
+}
+
+// =========================================================================
+// The loop.
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+struct LoopRecording {
+  std::string name;
+  fs::path path;
+  bool train = true;
+  std::shared_ptr<const PreparedRecording> prepared;
+  double noise_px = 0.0;  ///< SegmentationNoisePx
+};
+
+// One calibrated model and how it does everywhere.
+struct Fit {
+  std::vector<std::string> effects;
+  ParameterValues values;
+  std::vector<EvaluationResult> results;     ///< per recording (loop order)
+  std::vector<ResidualAnalysis> residuals;   ///< per recording
+  int evaluations = 0;
+  double seconds = 0.0;
+
+  int64_t XorSum(const std::vector<LoopRecording>& recs, bool train) const {
+    int64_t s = 0;
+    for (size_t r = 0; r < recs.size(); ++r) {
+      if (recs[r].train == train) s += results[r].ok() ? results[r].xor_sum : INT64_MAX / 64;
+    }
+    return s;
+  }
+  bool AllOk() const {
+    return std::all_of(results.begin(), results.end(), [](const EvaluationResult& e) { return e.ok(); });
+  }
+};
+
+std::string StageName(const std::vector<std::string>& effects) {
+  return ModelDefinition{effects}.ToString();
+}
+
+std::string JobName(int index, const std::vector<std::string>& effects) {
+  std::string name = fmt::format("stage{}-base", index);
+  for (const std::string& e : effects) name += "." + e;
+  return name;
+}
+
+json OptimizerSettings(const std::string& optimizer, int dimension, const std::vector<double>* x0,
+                       double sigma, int64_t budget) {
+  json settings = json::object();
+  if (optimizer == "cmaes") {
+    // Generations of 4 + 3 ln n candidates (the CMA-ES default), at least
+    // 8 so that two threads and more stay busy.
+    // (never more than the budget).
+    const int64_t population = std::max(8, 4 + static_cast<int>(3.0 * std::log(dimension)));
+    settings["population"] = std::max<int64_t>(2, std::min(population, budget));
+    settings["initial_sigma"] = sigma;
+    if (x0 != nullptr) settings["x0"] = *x0;
+  } else if (optimizer.rfind("nlopt:", 0) == 0 && x0 != nullptr) {
+    settings["x0"] = *x0;
+  }
+  return settings;
+}
+
+class Loop {
+ public:
+  Loop(const LoopOptions& options, const LoopLog& log) : o_(options), log_(log) {}
+
+  LoopResult Run();
+
+ private:
+  void Log(const std::string& line) const {
+    if (log_) log_(line);
+  }
+  void Prepare();
+  Fit Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm);
+  std::pair<ParameterValues, double> RunJob(const std::string& name,
+                                            const std::vector<std::string>& effects,
+                                            const std::vector<ParameterSetting>& settings,
+                                            const std::vector<double>* x0, double sigma,
+                                            int64_t budget, uint64_t seed, int* evaluations);
+  double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const;
+  void Measure(Fit* fit) const;
+  ReportStage MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const;
+  void AddResiduals(const Fit& fit);
+  void AddOverlays(const Fit& fit, const std::string& stage);
+  struct Verdict {
+    bool pass = false;
+    double gain = 0.0;       ///< drop of the deciding error (px)
+    double margin = 0.0;     ///< what it had to exceed
+    std::string criterion;
+    std::string reason;
+  };
+  Verdict Judge(const Fit& current, const Fit& candidate, int extra_parameters) const;
+  bool HasHoldout() const {
+    return std::any_of(recs_.begin(), recs_.end(), [](const LoopRecording& r) { return !r.train; });
+  }
+  double NoiseBudget(bool train) const {
+    double b = 0.0;
+    for (const LoopRecording& r : recs_) {
+      if (r.train == train) b += r.noise_px * r.prepared->scene.num_frames;
+    }
+    return b;
+  }
+
+  const LoopOptions& o_;
+  const LoopLog& log_;
+  std::vector<LoopRecording> recs_;
+  LoopScales scales_;
+  std::unique_ptr<ResultStore> store_;
+  int threads_ = 1;
+  LoopReport report_;
+};
+
+void Loop::Prepare() {
+  std::set<std::string> names;
+  auto add = [&](const fs::path& path, bool train) {
+    LoopRecording r;
+    r.path = path;
+    r.train = train;
+    Log(fmt::format("preparing {} ({})", path.string(), train ? "train" : "held out"));
+    r.prepared = std::make_shared<const PreparedRecording>(
+        PrepareRecording(LoadRecording(path), o_.preparation));
+    r.name = RecordingName(*r.prepared);
+    for (int k = 2; names.count(r.name) != 0; ++k) r.name = fmt::format("{}_{}", RecordingName(*r.prepared), k);
+    names.insert(r.name);
+    r.noise_px = SegmentationNoisePx(r.prepared->object_masks);
+    recs_.push_back(std::move(r));
+  };
+  for (const fs::path& p : o_.train) add(p, true);
+  for (const fs::path& p : o_.holdout) add(p, false);
+
+  bool first = true;
+  for (const LoopRecording& r : recs_) {
+    if (!r.train) continue;
+    const Recording& rec = r.prepared->recording;
+    for (const Vec2& f : rec.forces) scales_.peak_force = std::max(scales_.peak_force, f.norm());
+    scales_.duration_s = std::max(scales_.duration_s * (first ? 0.0 : 1.0),
+                                  rec.num_frames / std::max(rec.fps, 1e-9));
+    if (first) {
+      scales_.fps = rec.fps;
+      scales_.mm_per_px = rec.mm_per_px.value_or(0.0);
+    }
+    first = false;
+  }
+  for (const LoopRecording& r : recs_) {
+    report_.recordings.push_back({r.name, r.path.string(), r.train ? "train" : "holdout",
+                                  r.prepared->scene.num_frames, r.prepared->recording.fps});
+  }
+}
+
+// One calibration job of the store: `settings` searched by the loop's
+// optimiser (from x0 with initial_sigma when given), `budget` evaluations.
+// Returns the best record's values and score.
+std::pair<ParameterValues, double> Loop::RunJob(const std::string& name,
+                                                const std::vector<std::string>& effects,
+                                                const std::vector<ParameterSetting>& settings,
+                                                const std::vector<double>* x0, double sigma,
+                                                int64_t budget, uint64_t seed, int* evaluations) {
+  const SearchSpace space(settings);
+  json doc = json::object();
+  doc["name"] = name;
+  doc["train"] = json::array();
+  doc["holdout"] = json::array();
+  for (const LoopRecording& r : recs_) {
+    doc[r.train ? "train" : "holdout"].push_back(fs::absolute(r.path).string());
+  }
+  const SimulationOptions& sim = o_.simulation;
+  doc["model"] = {{"effects", effects},
+                  {"substeps", sim.substeps},
+                  {"integrator", ToString(sim.integrator)},
+                  {"constraint_iterations", sim.constraint_iterations},
+                  {"min_area_fraction", sim.min_area_fraction},
+                  {"divergence_diameters", sim.divergence_diameters},
+                  {"segmentation",
+                   {{"open_radius_px", o_.preparation.segmentation.open_radius_px},
+                    {"close_radius_px", o_.preparation.segmentation.close_radius_px},
+                    {"fill_holes", o_.preparation.segmentation.fill_holes}}},
+                  {"mesh", {{"edge_length_px", o_.preparation.mesher.edge_length_px}}},
+                  {"outline_tolerance_px", o_.preparation.outline_tolerance_px}};
+  doc["parameters"] = json::array();
+  for (const ParameterSetting& s : settings) {
+    if (s.fixed) {
+      doc["parameters"].push_back({{"name", s.name}, {"fixed", *s.fixed}});
+    } else {
+      doc["parameters"].push_back({{"name", s.name},
+                                   {"lower", s.lower},
+                                   {"upper", s.upper},
+                                   {"scale", ToString(s.scale)}});
+    }
+  }
+  doc["optimizer"] = {{"name", o_.optimizer},
+                      {"settings", OptimizerSettings(o_.optimizer, space.dimension(), x0, sigma, budget)}};
+  doc["budget"] = {{"evaluations", budget}};
+  doc["seed"] = seed;
+  doc["threads"] = threads_;
+  doc["checkpoint"] = {{"every_evaluations", budget}, {"every_seconds", 0}};
+  doc["results"] = {{"store", (o_.out_dir / "store.sqlite").string()},
+                    {"out_dir", o_.out_dir.string()}};
+  JobSpecParseOptions parse;
+  parse.recordings = RecordingCheck::kNone;
+  const JobSpec spec = ParseJobSpec(doc, "loop stage " + name, o_.out_dir, parse);
+
+  std::vector<std::shared_ptr<const PreparedRecording>> train;
+  for (const LoopRecording& r : recs_) {
+    if (r.train) train.push_back(r.prepared);
+  }
+  ModelObjective objective(train, o_.simulation, ModelDefinition{effects});
+  ThreadBatchEvaluator evaluator(objective, threads_);
+  const int64_t job = store_->CreateJob(spec.name, ToJson(spec));
+  RunControl control;
+  const RunSummary run = RunCalibration(spec, *store_, job, evaluator, control);
+  if (!run.best) {
+    throw std::runtime_error(fmt::format(
+        "loop: calibrating {} found no candidate that simulates every training recording ({})",
+        StageName(effects), run.stop_reason));
+  }
+  *evaluations += static_cast<int>(run.evaluations);
+  return {run.best->parameters, run.best->score};
+}
+
+double Loop::TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const {
+  std::vector<std::shared_ptr<const PreparedRecording>> train;
+  for (const LoopRecording& r : recs_) {
+    if (r.train) train.push_back(r.prepared);
+  }
+  const ObjectiveResult result =
+      ModelObjective(train, o_.simulation, ModelDefinition{effects}).MakeWorker()->Evaluate(values);
+  return result.ok() ? result.score : std::numeric_limits<double>::infinity();
+}
+
+Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm) {
+  const Clock::time_point start = Clock::now();
+  const std::vector<ParameterSetting> settings =
+      LoopParameterSettings(effects, scales_, warm != nullptr ? warm->values : ParameterValues{});
+  const int64_t budget = (effects.empty() || o_.effect_budget == 0) ? o_.budget : o_.effect_budget;
+  const uint64_t seed = o_.seed * 1000 + static_cast<uint64_t>(index);
+  Fit fit;
+  fit.effects = effects;
+  if (warm == nullptr) {
+    fit.values = RunJob(JobName(index, effects), effects, settings, nullptr, 0.3, budget, seed,
+                        &fit.evaluations).first;
+  } else {
+    // Warm start in two phases. (1) The new effect's parameters alone, over
+    // their whole box, the previous model's held at their best: a small
+    // search that sees what the effect can do. (2) Everything together from
+    // there, with a small step: the previous parameters adjust to the effect.
+    // The warm start itself (the effect neutral) and phase 1's best compete
+    // with phase 2's: the best on the training recordings is the result.
+    ParameterValues start_values;
+    std::vector<ParameterSetting> effect_only;
+    for (const ParameterSetting& s : settings) {
+      const auto it = warm->values.find(s.name);
+      if (it != warm->values.end()) {
+        const double v = std::clamp(it->second, s.fixed.value_or(s.lower), s.fixed.value_or(s.upper));
+        start_values[s.name] = v;
+        effect_only.push_back(Fixed(s.name, v));
+      } else {
+        start_values[s.name] = NeutralValue(s);
+        effect_only.push_back(s);
+      }
+    }
+    const int64_t budget1 = std::max<int64_t>(2, budget / 2);
+    const int64_t budget2 = std::max<int64_t>(2, budget - budget1);
+    std::vector<double> x1 = SearchSpace(effect_only).ToUnit(start_values);
+    for (double& u : x1) u = std::clamp(u, 0.0, 1.0);
+    const auto [values1, score1] = RunJob(JobName(index, effects) + "-effect", effects, effect_only,
+                                          &x1, 0.3, budget1, seed, &fit.evaluations);
+    std::vector<double> x2 = SearchSpace(settings).ToUnit(values1);
+    for (double& u : x2) u = std::clamp(u, 0.0, 1.0);
+    const auto [values2, score2] = RunJob(JobName(index, effects), effects, settings, &x2, 0.1,
+                                          budget2, seed + 500, &fit.evaluations);
+    const double score0 = TrainingScore(effects, start_values);
+    ++fit.evaluations;
+    fit.values = values2;
+    double best = score2;
+    if (score1 < best) {
+      fit.values = values1;
+      best = score1;
+    }
+    if (score0 < best) fit.values = start_values;
+  }
+  Measure(&fit);
+  fit.seconds = Since(start);
+  return fit;
+}
+
+void Loop::Measure(Fit* fit) const {
+  const int n = static_cast<int>(recs_.size());
+  fit->results.assign(n, {});
+  fit->residuals.assign(n, {});
+  const ModelDefinition model{fit->effects};
+  std::vector<std::string> errors(n);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, std::min(threads_, n)))
+  for (int r = 0; r < n; ++r) {
+    try {
+      Evaluator evaluator(*recs_[r].prepared, o_.simulation, model);
+      ResidualAnalyzer analyzer(*recs_[r].prepared);
+      fit->results[r] = evaluator.Evaluate(fit->values, analyzer);
+      fit->residuals[r] = analyzer.Finish();
+      fit->residuals[r].recording = recs_[r].name;
+    } catch (const std::exception& e) {
+      errors[r] = e.what();
+    }
+  }
+  for (int r = 0; r < n; ++r) {
+    if (!errors[r].empty()) {
+      throw std::runtime_error(fmt::format("loop: measuring {} on {}: {}", StageName(fit->effects),
+                                           recs_[r].name, errors[r]));
+    }
+  }
+}
+
+ReportStage Loop::MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const {
+  ReportStage s;
+  s.name = StageName(fit.effects);
+  s.effect_tried = tried;
+  s.decision = decision;
+  s.effects = fit.effects;
+  s.parameters = fit.values;
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    s.errors.push_back(RecordingScore::FromEvaluation(recs_[r].name, fit.results[r]));
+  }
+  s.calibration_time_s = fit.seconds;
+  s.evaluations = fit.evaluations;
+  return s;
+}
+
+void Loop::AddResiduals(const Fit& fit) {
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    report_.residuals.push_back({recs_[r].name, StageName(fit.effects), fit.residuals[r]});
+  }
+}
+
+void Loop::AddOverlays(const Fit& fit, const std::string& stage) {
+  if (o_.overlays_per_recording == 0) return;
+  const ModelDefinition model{fit.effects};
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    std::vector<int64_t> frame_xor;
+    for (const FrameScore& f : fit.results[r].frames) frame_xor.push_back(f.xor_px);
+    const int gap = std::max(1, static_cast<int>(frame_xor.size()) / 10);
+    std::vector<int> frames = WorstFrames(frame_xor, o_.overlays_per_recording, gap);
+    std::sort(frames.begin(), frames.end());
+    if (frames.empty()) continue;
+    try {
+      OverlayCapture capture(*recs_[r].prepared, frames, o_.out_dir, stage);
+      Evaluator evaluator(*recs_[r].prepared, o_.simulation, model);
+      evaluator.Evaluate(fit.values, capture);
+      for (const ReportOverlay& ov : capture.overlays()) report_.overlays.push_back(ov);
+    } catch (const std::exception& e) {
+      report_.notes.push_back(
+          fmt::format("no overlays of {} on {}: {}", stage, recs_[r].name, e.what()));
+    }
+  }
+}
+
+Loop::Verdict Loop::Judge(const Fit& current, const Fit& candidate, int extra_parameters) const {
+  Verdict v;
+  const int64_t train_before = current.XorSum(recs_, true);
+  const int64_t train_after = candidate.XorSum(recs_, true);
+  if (!candidate.AllOk()) {
+    v.criterion = "every recording simulates";
+    v.reason = "the calibrated model fails to simulate a recording";
+    return v;
+  }
+  if (HasHoldout()) {
+    const double before = static_cast<double>(current.XorSum(recs_, false));
+    const double after = static_cast<double>(candidate.XorSum(recs_, false));
+    const double noise = NoiseBudget(false);
+    v.gain = before - after;
+    v.margin = std::max(o_.noise_factor * (1 + extra_parameters) * noise, o_.min_relative_gain * before);
+    v.criterion = "held-out XOR sum";
+    const bool train_ok = train_after <= train_before;
+    // The XOR sum also falls when the mesh leaves an object it overlaps
+    // poorly (less than half): the held-out mean IoU must not fall.
+    double iou_before = 0.0, iou_after = 0.0;
+    int held = 0;
+    for (size_t r = 0; r < recs_.size(); ++r) {
+      if (recs_[r].train) continue;
+      iou_before += current.results[r].mean_iou;
+      iou_after += candidate.results[r].mean_iou;
+      ++held;
+    }
+    iou_before /= std::max(held, 1);
+    iou_after /= std::max(held, 1);
+    const bool iou_ok = iou_after >= iou_before;
+    v.pass = v.gain > v.margin && train_ok && iou_ok;
+    v.reason = fmt::format(
+        "held-out XOR sum {:.0f} -> {:.0f} ({:+.1f}%): drop {:.0f} px {} the margin {:.0f} px = "
+        "max({} x (1 + {} extra parameters) x segmentation noise {:.0f} px, {:.0f}% of {:.0f}); "
+        "training XOR sum {} -> {}{}; held-out mean IoU {:.4f} -> {:.4f}{}",
+        before, after, before > 0 ? 100.0 * (after - before) / before : 0.0, v.gain,
+        v.gain > v.margin ? "exceeds" : "does not exceed", v.margin, o_.noise_factor,
+        extra_parameters, noise, 100.0 * o_.min_relative_gain, before, train_before, train_after,
+        train_ok ? "" : " (rose: the fit got worse where it was fitted)", iou_before, iou_after,
+        iou_ok ? "" : " (fell: the XOR drop comes from a mesh that overlaps the object less)");
+    return v;
+  }
+  // No held-out recording: BIC on the per-frame errors of the training
+  // recordings (Gaussian per-frame XOR), plus the noise margin.
+  auto sse = [&](const Fit& fit, int64_t* n) {
+    double s = 0.0;
+    *n = 0;
+    for (size_t r = 0; r < recs_.size(); ++r) {
+      if (!recs_[r].train) continue;
+      for (const FrameScore& f : fit.results[r].frames) {
+        s += static_cast<double>(f.xor_px) * f.xor_px;
+        ++*n;
+      }
+    }
+    return s;
+  };
+  int64_t n = 0;
+  const double sse_before = sse(current, &n);
+  const double sse_after = sse(candidate, &n);
+  const int k_before = static_cast<int>(SearchSpace(LoopParameterSettings(current.effects, scales_, current.values)).dimension());
+  const int k_after = k_before + extra_parameters;
+  auto bic = [&](double s, int k) {
+    return n * std::log(std::max(s, 1.0) / std::max<int64_t>(n, 1)) + k * std::log(std::max<int64_t>(n, 2));
+  };
+  const double b0 = bic(sse_before, k_before), b1 = bic(sse_after, k_after);
+  const double noise = NoiseBudget(true);
+  v.gain = static_cast<double>(train_before - train_after);
+  v.margin = std::max(o_.noise_factor * (1 + extra_parameters) * noise,
+                      o_.min_relative_gain * static_cast<double>(train_before));
+  v.criterion = "BIC of per-frame training XOR";
+  v.pass = b1 < b0 && v.gain > v.margin;
+  v.reason = fmt::format(
+      "no held-out recording: BIC {:.1f} -> {:.1f} over {} frames ({} -> {} parameters); training "
+      "XOR sum {} -> {}, drop {:.0f} px {} the margin {:.0f} px",
+      b0, b1, n, k_before, k_after, train_before, train_after, v.gain,
+      v.gain > v.margin ? "exceeds" : "does not exceed", v.margin);
+  return v;
+}
+
+LoopResult Loop::Run() {
+  const Clock::time_point start = Clock::now();
+  std::string error;
+  if (!o_.IsValid(&error)) throw std::invalid_argument(error);
+  threads_ = ResolveThreadCount(o_.threads);
+  fs::create_directories(o_.out_dir);
+  const fs::path store_path = o_.out_dir / "store.sqlite";
+  for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(store_path.string() + suffix);
+  store_ = std::make_unique<ResultStore>(store_path);
+
+  report_.title = "calib loop";
+  report_.command = o_.command;
+  report_.seed = o_.seed;
+  Prepare();
+  const bool holdout = HasHoldout();
+  report_.selection_rule =
+      holdout
+          ? fmt::format(
+                "An effect is kept when, recalibrated with it, the held-out XOR sum (summed over "
+                "the held-out recordings and frames) drops by more than max({} x (1 + p) x N, "
+                "{:.0f}% of the held-out XOR sum before), where p is the number of parameters the "
+                "effect adds and N the held-out recordings' segmentation noise (per frame the "
+                "object pixels that flicker for one frame, mean over frames, summed over "
+                "frames), the training XOR sum does not rise and the held-out mean IoU does not fall "
+                "(the XOR sum also drops when a mesh leaves an object it overlaps poorly); the comparison is against the better "
+                "of the previous model and the previous model with the new calibration's values "
+                "(the effect off). Each round tries the {} best ranked hypotheses with confidence >= {:.2f} and keeps the one with the largest "
+                "held-out drop that passes; the loop stops when none passes or {} effects are kept.",
+                o_.noise_factor, 100.0 * o_.min_relative_gain, o_.tries_per_round,
+                o_.min_confidence, o_.max_effects)
+          : fmt::format(
+                "No held-out recording: an effect is kept when the Bayesian information criterion "
+                "of the per-frame training XOR (n ln(SSE / n) + k ln n over all training frames, "
+                "k searched parameters) falls and the training XOR sum drops by more than "
+                "max({} x (1 + p) x N, {:.0f}% of it) (N: the training recordings' segmentation "
+                "noise, p: parameters added). Each round tries the {} best ranked hypotheses with "
+                "confidence >= {:.2f}; the loop stops when none passes or {} effects are kept.",
+                o_.noise_factor, 100.0 * o_.min_relative_gain, o_.tries_per_round,
+                o_.min_confidence, o_.max_effects);
+  for (const LoopRecording& r : recs_) {
+    report_.notes.push_back(fmt::format("{}: segmentation noise {:.0f} px per frame ({} frames)",
+                                        r.name, r.noise_px, r.prepared->scene.num_frames));
+  }
+
+  int index = 1;
+  Log(fmt::format("calibrating the base model ({} evaluations, {} threads)", o_.budget, threads_));
+  Fit current = Calibrate(index++, {}, nullptr);
+  const Fit base = current;
+  report_.stages.push_back(MakeStage(base, "", StageDecision::kBase));
+  report_.stages.back().criterion = holdout ? "held-out XOR sum" : "training XOR sum";
+  report_.stages.back().criterion_value =
+      static_cast<double>(base.XorSum(recs_, !holdout));
+  report_.stages.back().reason = "the paper's base model";
+  AddResiduals(base);
+  Log(fmt::format("base: training XOR {}, held-out XOR {} ({:.1f} s)", base.XorSum(recs_, true),
+                  base.XorSum(recs_, false), base.seconds));
+
+  std::set<std::string> rejected_with;  // "model|effect" pairs tried
+  for (int round = 1; static_cast<int>(current.effects.size()) < o_.max_effects; ++round) {
+    std::vector<std::vector<Hypothesis>> per_recording;
+    for (size_t r = 0; r < recs_.size(); ++r) {
+      if (recs_[r].train) per_recording.push_back(TraceHypotheses(current.residuals[r], current.effects));
+    }
+    const std::vector<Hypothesis> ranked = MergeHypotheses(per_recording);
+    report_.rounds.push_back({round, StageName(current.effects), ranked});
+    Log(fmt::format("round {}: hypotheses from the residual of {}:\n{}", round,
+                    StageName(current.effects), HypothesesReport(ranked)));
+
+    std::vector<std::string> tries;
+    for (const Hypothesis& h : ranked) {
+      if (static_cast<int>(tries.size()) >= o_.tries_per_round) break;
+      if (h.confidence < o_.min_confidence) break;
+      tries.push_back(h.effect);
+    }
+    if (tries.empty()) {
+      report_.notes.push_back(fmt::format(
+          "round {}: no hypothesis reaches confidence {:.2f}: the residual of {} is not traced "
+          "to a missing effect",
+          round, o_.min_confidence, StageName(current.effects)));
+      Log(report_.notes.back());
+      break;
+    }
+    int best = -1;
+    double best_gain = 0.0;
+    std::vector<Fit> fits;
+    std::vector<size_t> stage_index;
+    for (const std::string& effect : tries) {
+      std::vector<std::string> effects = current.effects;
+      effects.push_back(effect);
+      Log(fmt::format("round {}: calibrating {} (warm start from {})", round, StageName(effects),
+                      StageName(current.effects)));
+      Fit fit = Calibrate(index++, effects, &current);
+      // The reference: the previous model, or the previous model with the
+      // candidate's values (the effect switched off) where that is better
+      // on the training recordings: a recalibration that found better base
+      // values gives the effect no credit for them.
+      Fit ablation;
+      ablation.effects = current.effects;
+      for (const auto& [name, value] : current.values) ablation.values[name] = fit.values.at(name);
+      Measure(&ablation);
+      const bool ablation_better =
+          ablation.AllOk() && ablation.XorSum(recs_, true) < current.XorSum(recs_, true);
+      const Fit& reference = ablation_better ? ablation : current;
+      const int extra = static_cast<int>(SearchSpace(LoopParameterSettings({effect}, scales_, current.values)).dimension()) -
+                        static_cast<int>(SearchSpace(LoopParameterSettings({}, scales_, current.values)).dimension());
+      Verdict v = Judge(reference, fit, extra);
+      if (ablation_better) {
+        v.reason = fmt::format(
+            "against the previous model with this calibration's values and {} off (training "
+            "XOR {} < {} of the previous fit): {}",
+            effect, ablation.XorSum(recs_, true), current.XorSum(recs_, true), v.reason);
+      }
+      ReportStage stage = MakeStage(fit, effect, StageDecision::kRejected);
+      stage.criterion = v.criterion;
+      stage.criterion_value = v.gain;
+      stage.reason = v.reason;
+      Log(fmt::format("round {}: {}: {}", round, StageName(effects), v.reason));
+      stage_index.push_back(report_.stages.size());
+      report_.stages.push_back(std::move(stage));
+      if (v.pass && (best < 0 || v.gain > best_gain)) {
+        best = static_cast<int>(fits.size());
+        best_gain = v.gain;
+      }
+      fits.push_back(std::move(fit));
+    }
+    if (best < 0) {
+      report_.notes.push_back(fmt::format("round {}: none of {} tried passes the criterion: stop",
+                                          round, fmt::join(tries, ", ")));
+      Log(report_.notes.back());
+      break;
+    }
+    ReportStage& kept = report_.stages[stage_index[best]];
+    kept.decision = StageDecision::kAccepted;
+    kept.reason += "; the largest passing drop of this round: kept";
+    for (size_t i = 0; i < fits.size(); ++i) {
+      if (static_cast<int>(i) != best && report_.stages[stage_index[i]].reason.find("exceeds the") != std::string::npos) {
+        report_.stages[stage_index[i]].reason += fmt::format(
+            "; passes, but {} drops more: not kept", fits[best].effects.back());
+      }
+    }
+    current = std::move(fits[best]);
+    report_.effects_kept = current.effects;
+    AddResiduals(current);
+    Log(fmt::format("round {}: kept {}", round, current.effects.back()));
+  }
+
+  AddOverlays(base, "base");
+  if (!current.effects.empty()) AddOverlays(current, StageName(current.effects));
+  report_.run_time_s = Since(start);
+
+  LoopResult result;
+  result.store = store_path;
+  result.report_json = o_.out_dir / "report.json";
+  if (o_.write_html) {
+    WriteLoopReport(o_.out_dir, report_);
+    result.report_html = o_.out_dir / "report.html";
+  } else {
+    WriteLoopReportJson(result.report_json, report_);
+  }
+  result.table = BeforeAfterTable(report_);
+  result.report = std::move(report_);
+  return result;
+}
+
+}  // namespace
+
+LoopResult RunLoop(const LoopOptions& options, const LoopLog& log) {
+  return Loop(options, log).Run();
+}
+
+std::string BeforeAfterTable(const LoopReport& report) {
+  const ReportStage* base = report.BaseStage();
+  const ReportStage* final_stage = report.FinalStage();
+  if (base == nullptr || final_stage == nullptr) return "no calibrated model\n";
+  std::string out = fmt::format("{:<22} {:<8} {:>12} {:>12} {:>8} {:>9} {:>9}\n", "recording", "role",
+                                "XOR base", "XOR final", "change", "IoU base", "IoU final");
+  for (const ReportRecording& rec : report.recordings) {
+    const RecordingScore* b = base->ErrorOn(rec.name);
+    const RecordingScore* f = final_stage->ErrorOn(rec.name);
+    if (b == nullptr || f == nullptr) continue;
+    const double change = b->xor_sum > 0 ? 100.0 * (double(f->xor_sum) - double(b->xor_sum)) / double(b->xor_sum) : 0.0;
+    out += fmt::format("{:<22} {:<8} {:>12} {:>12} {:>7.1f}% {:>9.4f} {:>9.4f}\n", rec.name, rec.role,
+                       b->xor_sum, f->xor_sum, change, b->mean_iou, f->mean_iou);
+  }
+  std::vector<std::string> tried;
+  for (const ReportStage& s : report.stages) {
+    if (!s.effect_tried.empty()) tried.push_back(fmt::format("{} ({})", s.effect_tried, ToString(s.decision)));
+  }
+  out += fmt::format("effects tried: {}\n", tried.empty() ? std::string("none") : fmt::format("{}", fmt::join(tried, ", ")));
+  out += fmt::format("effects kept: {}\n", report.effects_kept.empty()
+                                               ? std::string("none")
+                                               : fmt::format("{}", fmt::join(report.effects_kept, ", ")));
+  return out;
+}
+
+}  // namespace calib

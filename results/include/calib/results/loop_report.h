@@ -1,0 +1,134 @@
+#pragma once
+// The report of a closed calibration loop (`calib loop`): which recordings,
+// which models were calibrated (the base model, then one more effect at a
+// time), which were kept and why, the hypotheses and their evidence, and the
+// error of every model on every training and held-out recording.
+//
+// Plain data: the loop fills a LoopReport; WriteLoopReportJson writes
+// report.json (ReadLoopReportJson reads it back exactly) and
+// WriteLoopReportHtml (report_html.h) writes report.html with its plots.
+
+#include "calib/core/parameters.h"
+#include "calib/evaluator/evaluation.h"
+#include "calib/evaluator/hypotheses.h"
+#include "calib/evaluator/residual.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace calib {
+
+/// One recording the loop used.
+struct ReportRecording {
+  std::string name;  ///< unique within the report (the folder's name)
+  std::string path;
+  std::string role = "train";  ///< "train" or "holdout"
+  int num_frames = 0;
+  double fps = 0.0;
+};
+
+/// How one calibrated model did on one recording.
+struct RecordingScore {
+  std::string recording;       ///< a ReportRecording::name
+  std::string status = "ok";   ///< "ok" or "failed"
+  int64_t xor_sum = 0;         ///< XOR pixels summed over the frames
+  double mean_iou = 0.0;
+  std::vector<int64_t> frame_xor;  ///< per frame (may be empty); plotted
+  std::vector<double> frame_iou;
+
+  /// From an evaluation (per-frame values included).
+  static RecordingScore FromEvaluation(const std::string& recording, const EvaluationResult& result);
+};
+
+/// What the loop did with a stage's model.
+enum class StageDecision { kBase, kAccepted, kRejected };
+std::string ToString(StageDecision decision);  ///< "base", "accepted", "rejected"
+/// Throws std::invalid_argument naming the text.
+StageDecision StageDecisionFromString(const std::string& text);
+
+/// One calibrated model: the base model, or the kept effects plus one tried.
+struct ReportStage {
+  std::string name;            ///< e.g. "base", "base+plasticity"
+  std::string effect_tried;    ///< empty for the base stage
+  StageDecision decision = StageDecision::kBase;
+  std::vector<std::string> effects;  ///< the model's effects
+  ParameterValues parameters;        ///< calibrated values by name
+  std::vector<RecordingScore> errors;  ///< one per recording, training and held out
+  std::string criterion;        ///< what decided, e.g. "held-out XOR sum"
+  double criterion_value = 0.0;
+  std::string reason;           ///< the decision in words, with numbers
+  double calibration_time_s = 0.0;
+  int evaluations = 0;
+
+  /// The error on `recording`, or nullptr.
+  const RecordingScore* ErrorOn(const std::string& recording) const;
+};
+
+/// The hypotheses traced from one stage's residual.
+struct HypothesisRound {
+  int round = 0;
+  std::string stage;  ///< the ReportStage::name whose residual was traced
+  std::vector<Hypothesis> hypotheses;  ///< ranked
+};
+
+/// The residual analysis of one stage on one recording (heat maps, phases,
+/// signatures; written without the per-frame records).
+struct ReportResidual {
+  std::string recording;
+  std::string stage;
+  ResidualAnalysis analysis;
+};
+
+/// A diagnostic overlay image (evaluator/overlay.h) at a bad moment.
+struct ReportOverlay {
+  std::string recording;
+  std::string stage;
+  int frame = 0;
+  int64_t xor_px = 0;
+  double iou = 0.0;
+  std::string png_file;  ///< relative to the report's folder
+  std::string caption;
+};
+
+struct LoopReport {
+  std::string title = "calib loop";
+  std::string command;         ///< the command line that made it
+  uint64_t seed = 0;
+  std::string selection_rule;  ///< how an effect is kept, in words
+  double run_time_s = 0.0;
+  std::vector<ReportRecording> recordings;
+  std::vector<ReportStage> stages;  ///< in the order calibrated; the first is the base
+  std::vector<HypothesisRound> rounds;
+  std::vector<std::string> effects_kept;
+  std::vector<ReportResidual> residuals;
+  std::vector<ReportOverlay> overlays;
+  std::vector<std::string> notes;
+
+  /// The first stage, or nullptr.
+  const ReportStage* BaseStage() const;
+  /// The last kAccepted stage, else the base stage, or nullptr.
+  const ReportStage* FinalStage() const;
+};
+
+/// report.json: every field above, plus (derived, ignored on reading)
+/// "error_table": per recording its role and the XOR sum and mean IoU of
+/// the base and the final model, and "final_parameters". NaN is written
+/// as null.
+nlohmann::json ToJson(const LoopReport& report);
+/// Reads what ToJson writes. Throws std::invalid_argument naming the key.
+LoopReport LoopReportFromJson(const nlohmann::json& doc);
+
+/// Writes / reads report.json. Throw std::runtime_error naming the path
+/// (and std::invalid_argument from LoopReportFromJson for a malformed file).
+void WriteLoopReportJson(const std::filesystem::path& path, const LoopReport& report);
+LoopReport ReadLoopReportJson(const std::filesystem::path& path);
+
+/// The `count` frames of largest XOR that lie at least `min_gap` frames
+/// apart, worst first (for overlays).
+std::vector<int> WorstFrames(const std::vector<int64_t>& frame_xor, int count, int min_gap);
+
+}  // namespace calib

@@ -1,0 +1,356 @@
+// report.json of the closed loop (loop_report.h).
+
+#include "calib/results/loop_report.h"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+namespace calib {
+namespace {
+
+using nlohmann::json;
+
+[[noreturn]] void Bad(const std::string& key, const std::string& what) {
+  throw std::invalid_argument(fmt::format("loop report JSON: key '{}': {}", key, what));
+}
+
+json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+// Typed access that names the key path on failure.
+class In {
+ public:
+  In(const json& j, std::string path) : j_(j), path_(std::move(path)) {
+    if (!j_.is_object()) Bad(path_, "expected an object");
+  }
+  const json& Raw(const char* key) const {
+    if (!j_.contains(key)) Bad(Path(key), "missing");
+    return j_.at(key);
+  }
+  std::string Path(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+  std::string Text(const char* key) const {
+    const json& v = Raw(key);
+    if (!v.is_string()) Bad(Path(key), "expected a string");
+    return v.get<std::string>();
+  }
+  double Num(const char* key) const {
+    const json& v = Raw(key);
+    if (v.is_null()) return NAN;
+    if (!v.is_number()) Bad(Path(key), "expected a number");
+    return v.get<double>();
+  }
+  int64_t Int(const char* key) const {
+    const json& v = Raw(key);
+    if (!v.is_number_integer()) Bad(Path(key), "expected an integer");
+    return v.get<int64_t>();
+  }
+  uint64_t UInt(const char* key) const {
+    const json& v = Raw(key);
+    if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<int64_t>() >= 0)) {
+      Bad(Path(key), "expected a non-negative integer");
+    }
+    return v.get<uint64_t>();
+  }
+  const json& Array(const char* key) const {
+    const json& v = Raw(key);
+    if (!v.is_array()) Bad(Path(key), "expected an array");
+    return v;
+  }
+  std::vector<std::string> Texts(const char* key) const {
+    std::vector<std::string> out;
+    for (const json& e : Array(key)) {
+      if (!e.is_string()) Bad(Path(key), "expected strings");
+      out.push_back(e.get<std::string>());
+    }
+    return out;
+  }
+
+ private:
+  const json& j_;
+  std::string path_;
+};
+
+json ToJson(const RecordingScore& e) {
+  json iou = json::array();
+  for (double v : e.frame_iou) iou.push_back(Number(v));
+  return {{"recording", e.recording}, {"status", e.status},   {"xor_sum", e.xor_sum},
+          {"mean_iou", Number(e.mean_iou)}, {"frame_xor", e.frame_xor}, {"frame_iou", iou}};
+}
+
+RecordingScore ErrorFromJson(const json& j, const std::string& path) {
+  const In in(j, path);
+  RecordingScore e;
+  e.recording = in.Text("recording");
+  e.status = in.Text("status");
+  e.xor_sum = in.Int("xor_sum");
+  e.mean_iou = in.Num("mean_iou");
+  for (const json& v : in.Array("frame_xor")) {
+    if (!v.is_number_integer()) Bad(in.Path("frame_xor"), "expected integers");
+    e.frame_xor.push_back(v.get<int64_t>());
+  }
+  for (const json& v : in.Array("frame_iou")) {
+    e.frame_iou.push_back(v.is_null() ? NAN : v.get<double>());
+  }
+  return e;
+}
+
+json ToJson(const ParameterValues& values) {
+  json j = json::object();
+  for (const auto& [name, v] : values) j[name] = Number(v);
+  return j;
+}
+
+json ToJson(const ReportStage& s) {
+  json errors = json::array();
+  for (const RecordingScore& e : s.errors) errors.push_back(ToJson(e));
+  return {{"name", s.name},
+          {"effect_tried", s.effect_tried},
+          {"decision", ToString(s.decision)},
+          {"effects", s.effects},
+          {"parameters", ToJson(s.parameters)},
+          {"errors", errors},
+          {"criterion", s.criterion},
+          {"criterion_value", Number(s.criterion_value)},
+          {"reason", s.reason},
+          {"calibration_time_s", Number(s.calibration_time_s)},
+          {"evaluations", s.evaluations}};
+}
+
+ReportStage StageFromJson(const json& j, const std::string& path) {
+  const In in(j, path);
+  ReportStage s;
+  s.name = in.Text("name");
+  s.effect_tried = in.Text("effect_tried");
+  try {
+    s.decision = StageDecisionFromString(in.Text("decision"));
+  } catch (const std::invalid_argument& e) {
+    Bad(in.Path("decision"), e.what());
+  }
+  s.effects = in.Texts("effects");
+  const json& params = in.Raw("parameters");
+  if (!params.is_object()) Bad(in.Path("parameters"), "expected an object");
+  for (const auto& [name, v] : params.items()) {
+    if (!v.is_number() && !v.is_null()) Bad(in.Path("parameters." + name), "expected a number");
+    s.parameters[name] = v.is_null() ? NAN : v.get<double>();
+  }
+  const json& errors = in.Array("errors");
+  for (size_t i = 0; i < errors.size(); ++i) {
+    s.errors.push_back(ErrorFromJson(errors[i], fmt::format("{}[{}]", in.Path("errors"), i)));
+  }
+  s.criterion = in.Text("criterion");
+  s.criterion_value = in.Num("criterion_value");
+  s.reason = in.Text("reason");
+  s.calibration_time_s = in.Num("calibration_time_s");
+  s.evaluations = static_cast<int>(in.Int("evaluations"));
+  return s;
+}
+
+}  // namespace
+
+RecordingScore RecordingScore::FromEvaluation(const std::string& recording,
+                                              const EvaluationResult& result) {
+  RecordingScore e;
+  e.recording = recording;
+  e.status = ToString(result.status);
+  e.xor_sum = result.xor_sum;
+  e.mean_iou = result.mean_iou;
+  for (const FrameScore& f : result.frames) {
+    e.frame_xor.push_back(f.xor_px);
+    e.frame_iou.push_back(f.iou);
+  }
+  return e;
+}
+
+std::string ToString(StageDecision decision) {
+  switch (decision) {
+    case StageDecision::kBase: return "base";
+    case StageDecision::kAccepted: return "accepted";
+    case StageDecision::kRejected: return "rejected";
+  }
+  return "?";
+}
+
+StageDecision StageDecisionFromString(const std::string& text) {
+  if (text == "base") return StageDecision::kBase;
+  if (text == "accepted") return StageDecision::kAccepted;
+  if (text == "rejected") return StageDecision::kRejected;
+  throw std::invalid_argument(
+      fmt::format("stage decision '{}' is unknown: expected base, accepted or rejected", text));
+}
+
+const RecordingScore* ReportStage::ErrorOn(const std::string& recording) const {
+  for (const RecordingScore& e : errors) {
+    if (e.recording == recording) return &e;
+  }
+  return nullptr;
+}
+
+const ReportStage* LoopReport::BaseStage() const { return stages.empty() ? nullptr : &stages[0]; }
+
+const ReportStage* LoopReport::FinalStage() const {
+  for (auto it = stages.rbegin(); it != stages.rend(); ++it) {
+    if (it->decision == StageDecision::kAccepted) return &*it;
+  }
+  return BaseStage();
+}
+
+nlohmann::json ToJson(const LoopReport& r) {
+  json j = json::object();
+  j["format"] = "calib-loop-report/1";
+  j["title"] = r.title;
+  j["command"] = r.command;
+  j["seed"] = r.seed;
+  j["selection_rule"] = r.selection_rule;
+  j["run_time_s"] = Number(r.run_time_s);
+  json recordings = json::array();
+  for (const ReportRecording& rec : r.recordings) {
+    recordings.push_back({{"name", rec.name},
+                          {"path", rec.path},
+                          {"role", rec.role},
+                          {"num_frames", rec.num_frames},
+                          {"fps", Number(rec.fps)}});
+  }
+  j["recordings"] = recordings;
+  json stages = json::array();
+  for (const ReportStage& s : r.stages) stages.push_back(ToJson(s));
+  j["stages"] = stages;
+  json rounds = json::array();
+  for (const HypothesisRound& round : r.rounds) {
+    json hs = json::array();
+    for (const Hypothesis& h : round.hypotheses) hs.push_back(ToJson(h));
+    rounds.push_back({{"round", round.round}, {"stage", round.stage}, {"hypotheses", hs}});
+  }
+  j["rounds"] = rounds;
+  j["effects_kept"] = r.effects_kept;
+  json residuals = json::array();
+  for (const ReportResidual& res : r.residuals) {
+    residuals.push_back({{"recording", res.recording},
+                         {"stage", res.stage},
+                         {"analysis", ToJson(res.analysis, false)}});
+  }
+  j["residuals"] = residuals;
+  json overlays = json::array();
+  for (const ReportOverlay& o : r.overlays) {
+    overlays.push_back({{"recording", o.recording},
+                        {"stage", o.stage},
+                        {"frame", o.frame},
+                        {"xor_px", o.xor_px},
+                        {"iou", Number(o.iou)},
+                        {"png_file", o.png_file},
+                        {"caption", o.caption}});
+  }
+  j["overlays"] = overlays;
+  j["notes"] = r.notes;
+
+  // Derived: the before / after table.
+  const ReportStage* base = r.BaseStage();
+  const ReportStage* final_stage = r.FinalStage();
+  json table = json::array();
+  for (const ReportRecording& rec : r.recordings) {
+    json row = {{"recording", rec.name}, {"role", rec.role}};
+    const RecordingScore* before = base != nullptr ? base->ErrorOn(rec.name) : nullptr;
+    const RecordingScore* after = final_stage != nullptr ? final_stage->ErrorOn(rec.name) : nullptr;
+    row["before"] = before != nullptr ? json{{"xor_sum", before->xor_sum},
+                                             {"mean_iou", Number(before->mean_iou)},
+                                             {"status", before->status}}
+                                      : json(nullptr);
+    row["after"] = after != nullptr ? json{{"xor_sum", after->xor_sum},
+                                           {"mean_iou", Number(after->mean_iou)},
+                                           {"status", after->status}}
+                                    : json(nullptr);
+    table.push_back(row);
+  }
+  j["error_table"] = table;
+  j["final_model"] = final_stage != nullptr ? json(final_stage->name) : json(nullptr);
+  j["final_parameters"] = final_stage != nullptr ? ToJson(final_stage->parameters) : json(nullptr);
+  return j;
+}
+
+LoopReport LoopReportFromJson(const nlohmann::json& doc) {
+  const In in(doc, "");
+  if (in.Text("format") != "calib-loop-report/1") {
+    Bad("format", fmt::format("expected calib-loop-report/1, found {}", in.Text("format")));
+  }
+  LoopReport r;
+  r.title = in.Text("title");
+  r.command = in.Text("command");
+  r.seed = in.UInt("seed");
+  r.selection_rule = in.Text("selection_rule");
+  r.run_time_s = in.Num("run_time_s");
+  const json& recordings = in.Array("recordings");
+  for (size_t i = 0; i < recordings.size(); ++i) {
+    const In rec(recordings[i], fmt::format("recordings[{}]", i));
+    r.recordings.push_back({rec.Text("name"), rec.Text("path"), rec.Text("role"),
+                            static_cast<int>(rec.Int("num_frames")), rec.Num("fps")});
+  }
+  const json& stages = in.Array("stages");
+  for (size_t i = 0; i < stages.size(); ++i) {
+    r.stages.push_back(StageFromJson(stages[i], fmt::format("stages[{}]", i)));
+  }
+  const json& rounds = in.Array("rounds");
+  for (size_t i = 0; i < rounds.size(); ++i) {
+    const In round(rounds[i], fmt::format("rounds[{}]", i));
+    HypothesisRound h;
+    h.round = static_cast<int>(round.Int("round"));
+    h.stage = round.Text("stage");
+    for (const json& hyp : round.Array("hypotheses")) h.hypotheses.push_back(HypothesisFromJson(hyp));
+    r.rounds.push_back(std::move(h));
+  }
+  r.effects_kept = in.Texts("effects_kept");
+  const json& residuals = in.Array("residuals");
+  for (size_t i = 0; i < residuals.size(); ++i) {
+    const In res(residuals[i], fmt::format("residuals[{}]", i));
+    r.residuals.push_back(
+        {res.Text("recording"), res.Text("stage"), ResidualAnalysisFromJson(res.Raw("analysis"))});
+  }
+  const json& overlays = in.Array("overlays");
+  for (size_t i = 0; i < overlays.size(); ++i) {
+    const In o(overlays[i], fmt::format("overlays[{}]", i));
+    r.overlays.push_back({o.Text("recording"), o.Text("stage"), static_cast<int>(o.Int("frame")),
+                          o.Int("xor_px"), o.Num("iou"), o.Text("png_file"), o.Text("caption")});
+  }
+  r.notes = in.Texts("notes");
+  return r;
+}
+
+void WriteLoopReportJson(const std::filesystem::path& path, const LoopReport& report) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(fmt::format("{}: cannot open for writing", path.string()));
+  out << ToJson(report).dump(1) << '\n';
+  if (!out) throw std::runtime_error(fmt::format("{}: write failed", path.string()));
+}
+
+LoopReport ReadLoopReportJson(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(fmt::format("{}: cannot open", path.string()));
+  json doc;
+  try {
+    doc = json::parse(in);
+  } catch (const json::parse_error& e) {
+    throw std::invalid_argument(fmt::format("{}: invalid JSON: {}", path.string(), e.what()));
+  }
+  return LoopReportFromJson(doc);
+}
+
+std::vector<int> WorstFrames(const std::vector<int64_t>& frame_xor, int count, int min_gap) {
+  std::vector<int> order(frame_xor.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return frame_xor[a] > frame_xor[b]; });
+  std::vector<int> out;
+  for (int f : order) {
+    if (static_cast<int>(out.size()) >= count) break;
+    bool far_enough = true;
+    for (int w : out) far_enough &= std::abs(w - f) >= min_gap;
+    if (far_enough) out.push_back(f);
+  }
+  return out;
+}
+
+}  // namespace calib

@@ -1,0 +1,384 @@
+// report.html (report_html.h): tables in HTML, plots by gnuplot as SVG.
+
+#include "calib/results/report_html.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+namespace calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Escape(const std::string& s) {
+  std::string out;
+  out.reserve(s.size());
+  for (char c : s) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+std::string Base64(const std::string& bytes) {
+  static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const uint32_t v = (static_cast<uint8_t>(bytes[i]) << 16) |
+                       (static_cast<uint8_t>(bytes[i + 1]) << 8) | static_cast<uint8_t>(bytes[i + 2]);
+    out += table[v >> 18];
+    out += table[(v >> 12) & 63];
+    out += table[(v >> 6) & 63];
+    out += table[v & 63];
+  }
+  if (i + 1 == bytes.size()) {
+    const uint32_t v = static_cast<uint8_t>(bytes[i]) << 16;
+    out += table[v >> 18];
+    out += table[(v >> 12) & 63];
+    out += "==";
+  } else if (i + 2 == bytes.size()) {
+    const uint32_t v = (static_cast<uint8_t>(bytes[i]) << 16) | (static_cast<uint8_t>(bytes[i + 1]) << 8);
+    out += table[v >> 18];
+    out += table[(v >> 12) & 63];
+    out += table[(v >> 6) & 63];
+    out += '=';
+  }
+  return out;
+}
+
+std::string Num(double v, int decimals = 2) {
+  return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : std::string("&ndash;");
+}
+
+std::string Percent(double before, double after) {
+  if (!(before > 0.0)) return "&ndash;";
+  return fmt::format("{:+.1f}%", 100.0 * (after - before) / before);
+}
+
+// The SVG document without its XML prologue, for inline use.
+std::string InlineSvg(const std::string& svg) {
+  const size_t at = svg.find("<svg");
+  return at == std::string::npos ? svg : svg.substr(at);
+}
+
+// Plot making, or its absence.
+class Plotter {
+ public:
+  explicit Plotter(const HtmlReportOptions& options) : options_(options) {
+    available_ = GnuplotAvailable(options.gnuplot.executable, &message_);
+    if (!available_ && options.require_plots) throw std::runtime_error(message_);
+  }
+  bool available() const { return available_; }
+  const std::string& message() const { return message_; }
+  int plots() const { return plots_; }
+
+  /// The figure for `script` (a <figure> with the SVG and a caption), or
+  /// an empty string without gnuplot.
+  std::string Figure(const std::string& script, const std::string& caption, int height_px = 0) {
+    if (!available_) return "";
+    GnuplotOptions g = options_.gnuplot;
+    if (height_px > 0) g.height_px = height_px;
+    std::string svg;
+    try {
+      svg = RenderSvg(script, g);
+    } catch (const std::runtime_error&) {
+      if (options_.require_plots) throw;
+      return fmt::format("<p class=\"warn\">Plot failed: {}</p>\n", Escape(caption));
+    }
+    ++plots_;
+    return fmt::format("<figure class=\"plot\">{}<figcaption>{}</figcaption></figure>\n",
+                       InlineSvg(svg), Escape(caption));
+  }
+
+ private:
+  const HtmlReportOptions& options_;
+  bool available_ = false;
+  std::string message_;
+  int plots_ = 0;
+};
+
+// Per-frame XOR of base and final model on one recording.
+std::string ErrorPlotScript(const ReportRecording& rec, const RecordingScore* before,
+                            const RecordingScore* after) {
+  auto rows = [&](const RecordingScore* e) {
+    std::vector<std::vector<double>> out;
+    const double fps = rec.fps > 0 ? rec.fps : 1.0;
+    for (size_t f = 0; f < e->frame_xor.size(); ++f) {
+      out.push_back({static_cast<double>(f) / fps, static_cast<double>(e->frame_xor[f])});
+    }
+    return out;
+  };
+  std::string script;
+  std::vector<std::string> plots;
+  if (before != nullptr && !before->frame_xor.empty()) {
+    script += Datablock("before", rows(before));
+    plots.push_back("$before using 1:2 with lines lw 1.5 lc rgb '#c0392b' title 'before (base model)'");
+  }
+  if (after != nullptr && after != before && !after->frame_xor.empty()) {
+    script += Datablock("after", rows(after));
+    plots.push_back("$after using 1:2 with lines lw 1.5 lc rgb '#2471a3' title 'after (final model)'");
+  }
+  if (plots.empty()) return "";
+  script += fmt::format(
+      "set title {}\nset xlabel 'time (s)'\nset ylabel 'XOR (px per frame)'\nset grid\n"
+      "set key top left\nset yrange [0:*]\nplot {}\n",
+      GnuplotQuote(rec.name + " (" + rec.role + "): per-frame error"),
+      fmt::join(plots, ", \\\n  "));
+  return script;
+}
+
+// Two heat maps (missed, extra) over the rest shape: residual pixel-frames
+// per rest pixel, averaged over the analysed frames.
+std::string HeatMapScript(const ReportResidual& r) {
+  const RestHeatMap& h = r.analysis.heat_map;
+  if (h.cols < 1 || h.rows < 1 || h.missed.size() != static_cast<size_t>(h.cols) * h.rows) {
+    return "";
+  }
+  const double frames = std::max(1, r.analysis.frames_analysed);
+  auto block = [&](const std::string& name, const std::vector<double>& v) {
+    std::vector<std::vector<double>> rows;
+    for (int row = 0; row < h.rows; ++row) {
+      for (int col = 0; col < h.cols; ++col) {
+        const size_t i = static_cast<size_t>(row) * h.cols + col;
+        const double area = h.area_px[i];
+        rows.push_back({h.origin_px.x() + (col + 0.5) * h.cell_px,
+                        h.origin_px.y() + (row + 0.5) * h.cell_px,
+                        area > 0.0 ? v[i] / area / frames : 0.0});
+      }
+      rows.push_back({});
+    }
+    return Datablock(name, rows);
+  };
+  const double x0 = h.origin_px.x(), y0 = h.origin_px.y();
+  const double x1 = x0 + h.cols * h.cell_px, y1 = y0 + h.rows * h.cell_px;
+  std::string s = block("missed", h.missed) + block("extra", h.extra);
+  s += fmt::format(
+      "set multiplot layout 1,2 title {}\n"
+      "set size ratio -1\nset xrange [{:.3f}:{:.3f}]\nset yrange [{:.3f}:{:.3f}] reverse\n"
+      "set xlabel 'rest x (px)'\nset ylabel 'rest y (px)'\nset cbrange [0:*]\n"
+      "set palette defined (0 '#ffffff', 1 '#fcbba1', 2 '#fb6a4a', 3 '#99000d')\n"
+      "set title 'missed: object, not mesh'\nplot $missed using 1:2:3 with image notitle\n"
+      "set palette defined (0 '#ffffff', 1 '#c6dbef', 2 '#6baed6', 3 '#08306b')\n"
+      "set title 'extra: mesh, not object'\nplot $extra using 1:2:3 with image notitle\n"
+      "unset multiplot\n",
+      GnuplotQuote(fmt::format("{} / {}: residual over the rest shape (share of frames)",
+                               r.recording, r.stage)),
+      x0, x1, y0, y1);
+  return s;
+}
+
+// Clustered bars: XOR sum before / after per recording.
+std::string SummaryBarsScript(const LoopReport& report) {
+  const ReportStage* base = report.BaseStage();
+  const ReportStage* fin = report.FinalStage();
+  if (base == nullptr) return "";
+  std::string data = "$bars << EOD\n";
+  int n = 0;
+  for (const ReportRecording& rec : report.recordings) {
+    const RecordingScore* b = base->ErrorOn(rec.name);
+    const RecordingScore* a = fin->ErrorOn(rec.name);
+    if (b == nullptr || a == nullptr) continue;
+    data += fmt::format("{} {} {}\n", GnuplotQuote(rec.name + " (" + rec.role + ")"), b->xor_sum,
+                        a->xor_sum);
+    ++n;
+  }
+  data += "EOD\n";
+  if (n == 0) return "";
+  return data +
+         "set style data histogram\nset style histogram clustered gap 1\n"
+         "set style fill solid 0.8 border -1\nset boxwidth 0.9\nset grid ytics\n"
+         "set ylabel 'XOR pixels summed over frames'\nset yrange [0:*]\nset key top right\n"
+         "set xtics rotate by -20\n"
+         "set title 'error before and after, every recording'\n"
+         "plot $bars using 2:xtic(1) title 'before (base model)' lc rgb '#c0392b', "
+         "'' using 3 title 'after (final model)' lc rgb '#2471a3'\n";
+}
+
+std::string Params(const ParameterValues& values) {
+  std::string s;
+  for (const auto& [name, v] : values) {
+    if (!s.empty()) s += ", ";
+    s += fmt::format("{} = {:.4g}", Escape(name), v);
+  }
+  return s;
+}
+
+constexpr const char* kStyle = R"(
+body { font-family: sans-serif; margin: 2em; max-width: 1200px; color: #222; }
+table { border-collapse: collapse; margin: 1em 0; }
+th, td { border: 1px solid #bbb; padding: 0.3em 0.6em; text-align: left; vertical-align: top; }
+th { background: #eee; }
+td.n { text-align: right; font-variant-numeric: tabular-nums; }
+.accepted { background: #e8f6e8; } .rejected { background: #fbeaea; } .base { background: #f4f4f4; }
+.warn { background: #fff3cd; border: 1px solid #e0c060; padding: 0.6em; }
+figure { margin: 1em 0; } figcaption { font-size: 0.9em; color: #555; }
+img.overlay { max-width: 100%; border: 1px solid #999; }
+ul.evidence { margin: 0.2em 0; padding-left: 1.2em; font-size: 0.9em; }
+)";
+
+}  // namespace
+
+HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopReport& report,
+                                      const HtmlReportOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  HtmlReportSummary summary;
+  Plotter plot(options);
+  summary.plots_made = plot.available();
+  summary.plot_message = plot.message();
+
+  const ReportStage* base = report.BaseStage();
+  const ReportStage* fin = report.FinalStage();
+  std::ostringstream h;
+  h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>"
+    << Escape(report.title) << "</title>\n<style>" << kStyle << "</style>\n</head>\n<body>\n";
+  h << "<h1>" << Escape(report.title) << "</h1>\n";
+  if (!plot.available()) {
+    h << "<p class=\"warn\">This report has no plots: " << Escape(plot.message()) << ".</p>\n";
+  }
+  h << "<p>Command: <code>" << Escape(report.command) << "</code><br>Seed " << report.seed
+    << ", run time " << Num(report.run_time_s, 1) << " s.<br>Selection rule: "
+    << Escape(report.selection_rule) << "</p>\n";
+  h << "<p>Effects kept: <b>"
+    << (report.effects_kept.empty() ? std::string("none")
+                                    : Escape(fmt::format("{}", fmt::join(report.effects_kept, ", "))))
+    << "</b>. Final model: <b>" << (fin != nullptr ? Escape(fin->name) : std::string("&ndash;"))
+    << "</b>.</p>\n";
+
+  // Before / after.
+  h << "<h2>Error before and after</h2>\n<table>\n<tr><th>recording</th><th>role</th>"
+       "<th>XOR sum before</th><th>XOR sum after</th><th>change</th><th>mean IoU before</th>"
+       "<th>mean IoU after</th></tr>\n";
+  for (const ReportRecording& rec : report.recordings) {
+    const RecordingScore* b = base != nullptr ? base->ErrorOn(rec.name) : nullptr;
+    const RecordingScore* a = fin != nullptr ? fin->ErrorOn(rec.name) : nullptr;
+    h << "<tr><td>" << Escape(rec.name) << "</td><td>" << Escape(rec.role) << "</td>";
+    h << "<td class=\"n\">" << (b ? std::to_string(b->xor_sum) : "&ndash;") << "</td>";
+    h << "<td class=\"n\">" << (a ? std::to_string(a->xor_sum) : "&ndash;") << "</td>";
+    h << "<td class=\"n\">"
+      << (a && b ? Percent(static_cast<double>(b->xor_sum), static_cast<double>(a->xor_sum))
+                 : "&ndash;")
+      << "</td>";
+    h << "<td class=\"n\">" << (b ? Num(b->mean_iou, 4) : "&ndash;") << "</td>";
+    h << "<td class=\"n\">" << (a ? Num(a->mean_iou, 4) : "&ndash;") << "</td></tr>\n";
+  }
+  h << "</table>\n";
+  const std::string bars = SummaryBarsScript(report);
+  if (!bars.empty()) {
+    h << plot.Figure(bars, "XOR pixels summed over each recording, base model and final model");
+  }
+
+  // Stages.
+  h << "<h2>Models calibrated</h2>\n<table>\n<tr><th>stage</th><th>effect tried</th>"
+       "<th>decision</th><th>criterion</th><th>reason</th><th>parameters</th>"
+       "<th>evaluations</th><th>time (s)</th></tr>\n";
+  for (const ReportStage& s : report.stages) {
+    h << "<tr class=\"" << ToString(s.decision) << "\"><td>" << Escape(s.name) << "</td><td>"
+      << Escape(s.effect_tried) << "</td><td>" << ToString(s.decision) << "</td><td>"
+      << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << "</td><td>"
+      << Escape(s.reason) << "</td><td>" << Params(s.parameters) << "</td><td class=\"n\">"
+      << s.evaluations << "</td><td class=\"n\">" << Num(s.calibration_time_s, 1)
+      << "</td></tr>\n";
+  }
+  h << "</table>\n";
+
+  // Hypotheses.
+  h << "<h2>Hypotheses</h2>\n";
+  for (const HypothesisRound& round : report.rounds) {
+    h << "<h3>Round " << round.round << ": traced from the residual of " << Escape(round.stage)
+      << "</h3>\n<table>\n<tr><th>rank</th><th>effect</th><th>confidence</th><th>signature</th>"
+         "<th>evidence</th></tr>\n";
+    int rank = 1;
+    for (const Hypothesis& hyp : round.hypotheses) {
+      h << "<tr><td class=\"n\">" << rank++ << "</td><td>" << Escape(hyp.effect)
+        << "</td><td class=\"n\">" << Num(hyp.confidence, 2) << "</td><td>"
+        << Escape(hyp.summary) << "</td><td><ul class=\"evidence\">";
+      for (const Evidence& e : hyp.evidence) {
+        h << "<li>[" << Num(e.support, 2) << "] " << Escape(e.statement) << "</li>";
+      }
+      h << "</ul></td></tr>\n";
+    }
+    h << "</table>\n";
+  }
+
+  // Per recording.
+  for (const ReportRecording& rec : report.recordings) {
+    h << "<h2>" << Escape(rec.name) << " (" << Escape(rec.role) << ")</h2>\n";
+    const RecordingScore* b = base != nullptr ? base->ErrorOn(rec.name) : nullptr;
+    const RecordingScore* a = fin != nullptr ? fin->ErrorOn(rec.name) : nullptr;
+    const std::string error_script = ErrorPlotScript(rec, b, a);
+    if (!error_script.empty()) {
+      h << plot.Figure(error_script, "XOR pixels per frame: base model and final model");
+    }
+    for (const ReportResidual& r : report.residuals) {
+      if (r.recording != rec.name) continue;
+      const std::string script = HeatMapScript(r);
+      if (!script.empty()) {
+        h << plot.Figure(script,
+                         fmt::format("Where the residual of {} lies on the rest shape (missed "
+                                     "pixels mapped to the nearest mesh boundary, extra pixels "
+                                     "through the mesh's barycentric coordinates); mean XOR "
+                                     "{:.0f} px/frame",
+                                     r.stage, r.analysis.mean_xor_px),
+                         420);
+      }
+      h << "<details><summary>Residual analysis of " << Escape(r.stage)
+        << "</summary><pre>" << Escape(r.analysis.BriefReport()) << "</pre></details>\n";
+    }
+    for (const ReportOverlay& o : report.overlays) {
+      if (o.recording != rec.name) continue;
+      std::string src = Escape(o.png_file);
+      if (options.embed_images) {
+        std::ifstream in(html_path.parent_path() / o.png_file, std::ios::binary);
+        if (in) {
+          std::ostringstream bytes;
+          bytes << in.rdbuf();
+          src = "data:image/png;base64," + Base64(bytes.str());
+        }
+      }
+      h << "<figure><img class=\"overlay\" src=\"" << src << "\" alt=\"overlay frame " << o.frame
+        << "\"><figcaption>" << Escape(o.stage) << ", frame " << o.frame << ": XOR " << o.xor_px
+        << " px, IoU " << Num(o.iou, 4) << ". " << Escape(o.caption)
+        << "</figcaption></figure>\n";
+      ++summary.overlays;
+    }
+  }
+  if (!report.notes.empty()) {
+    h << "<h2>Notes</h2>\n<ul>\n";
+    for (const std::string& n : report.notes) h << "<li>" << Escape(n) << "</li>\n";
+    h << "</ul>\n";
+  }
+  h << "<p style=\"font-size:0.8em;color:#777\">Plots: "
+    << (plot.available() ? Escape(plot.message()) : std::string("none")) << ".</p>\n";
+  h << "</body>\n</html>\n";
+
+  std::ofstream out(html_path);
+  if (!out) throw std::runtime_error(fmt::format("{}: cannot open for writing", html_path.string()));
+  out << h.str();
+  if (!out) throw std::runtime_error(fmt::format("{}: write failed", html_path.string()));
+  summary.plots = plot.plots();
+  return summary;
+}
+
+HtmlReportSummary WriteLoopReport(const fs::path& out_dir, const LoopReport& report,
+                                  const HtmlReportOptions& options) {
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw std::runtime_error(fmt::format("{}: cannot create: {}", out_dir.string(), ec.message()));
+  WriteLoopReportJson(out_dir / "report.json", report);
+  return WriteLoopReportHtml(out_dir / "report.html", report, options);
+}
+
+}  // namespace calib

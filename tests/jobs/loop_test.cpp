@@ -1,0 +1,152 @@
+// The loop as a whole: on recordings with no effect beyond the base model it
+// adds nothing; the same seed gives the same report numbers at 1 and 2
+// threads; the report files; bad options are named.
+
+#include "loop_test_support.h"
+
+#include "calib/results/loop_report.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace calib {
+namespace {
+
+using testing::ExamplesDir;
+
+TEST(Loop, AddsNothingWhereNoEffectIsPresent) {
+  const auto train = ExamplesDir() / "push_centre";
+  const auto holdout = ExamplesDir() / "push_offset";
+  ASSERT_TRUE(std::filesystem::exists(holdout / "recording.json")) << holdout;
+  for (const auto& dir : {train, holdout}) {
+    if (std::filesystem::exists(dir / "truth.json")) {
+      ASSERT_TRUE(testing::TrueEffects(dir).empty()) << dir << " has effects";
+    }
+  }
+  LoopOptions options = testing::TestLoopOptions({train}, {holdout}, "loop_no_effect");
+  options.overlays_per_recording = 1;
+  options.write_html = true;
+  const LoopResult result = RunLoop(options);
+  SCOPED_TRACE(result.table);
+  EXPECT_TRUE(result.report.effects_kept.empty());
+  const ReportStage* final_stage = result.report.FinalStage();
+  ASSERT_NE(final_stage, nullptr);
+  EXPECT_EQ(final_stage->name, "base");
+  for (const ReportStage& s : result.report.stages) {
+    if (s.decision != StageDecision::kBase) EXPECT_EQ(s.decision, StageDecision::kRejected) << s.name;
+  }
+  // The report: json that reads back, html with plots, the table printed.
+  const LoopReport back = ReadLoopReportJson(result.report_json);
+  EXPECT_EQ(back.stages.size(), result.report.stages.size());
+  EXPECT_FALSE(back.selection_rule.empty());
+  std::ifstream html(result.report_html);
+  std::stringstream text;
+  text << html.rdbuf();
+  EXPECT_NE(text.str().find("<svg"), std::string::npos);
+  EXPECT_NE(result.table.find("push_centre"), std::string::npos);
+  EXPECT_NE(result.table.find("push_offset"), std::string::npos);
+  EXPECT_NE(result.table.find("effects kept: none"), std::string::npos);
+  EXPECT_TRUE(std::filesystem::exists(result.store));
+}
+
+// The report without what depends on the clock or the folder.
+nlohmann::json Numbers(LoopReport report) {
+  report.run_time_s = 0.0;
+  report.command.clear();
+  for (ReportStage& s : report.stages) s.calibration_time_s = 0.0;
+  report.overlays.clear();
+  return ToJson(report);
+}
+
+TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
+  const auto train = ExamplesDir() / "push_centre";
+  const auto holdout = ExamplesDir() / "push_offset";
+  LoopOptions options = testing::TestLoopOptions({train}, {holdout}, "loop_determinism_1");
+  options.budget = 24;
+  options.effect_budget = 12;  // two phases of 6: a population cut to the budget
+  options.tries_per_round = 1;
+  options.min_confidence = 0.0;  // always try the top hypothesis
+  options.threads = 1;
+  const LoopResult one = RunLoop(options);
+  options.out_dir = testing::ScratchDir("loop_determinism_2");
+  options.threads = 2;
+  const LoopResult two = RunLoop(options);
+  ASSERT_GE(one.report.stages.size(), 2u);  // an effect was calibrated too
+  EXPECT_EQ(Numbers(one.report), Numbers(two.report));
+  EXPECT_EQ(one.table, two.table);
+  options.seed = 2;
+  options.out_dir = testing::ScratchDir("loop_determinism_3");
+  const LoopResult other = RunLoop(options);
+  EXPECT_NE(Numbers(one.report)["stages"][0]["parameters"],
+            Numbers(other.report)["stages"][0]["parameters"]);
+}
+
+TEST(Loop, BadOptionsAreNamed) {
+  auto message = [](const LoopOptions& o) {
+    try {
+      RunLoop(o);
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  LoopOptions o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.train.clear();
+  EXPECT_NE(message(o).find("--train"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.budget = 1;
+  EXPECT_NE(message(o).find("--budget = 1"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.tries_per_round = 0;
+  EXPECT_NE(message(o).find("--tries = 0"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "absent_recording"}, {}, "loop_bad");
+  EXPECT_NE(message(o).find("absent_recording"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.optimizer = "simplex";
+  EXPECT_NE(message(o).find("simplex"), std::string::npos);
+}
+
+TEST(Loop, SearchBoxesCoverEveryEffectAndNeutralValuesLieInThem) {
+  LoopScales scales;
+  scales.peak_force = 2.0;
+  scales.fps = 240.0;
+  scales.duration_s = 1.5;
+  for (const EffectInfo& info : EffectTermCatalogue()) {
+    const auto settings = LoopParameterSettings({info.name}, scales, {{"k_D", 300.0}});
+    for (const ParameterSpec& p : info.parameters) {
+      const auto it = std::find_if(settings.begin(), settings.end(),
+                                   [&](const ParameterSetting& s) { return s.name == p.name; });
+      ASSERT_NE(it, settings.end()) << p.name;
+      ASSERT_TRUE(it->searched()) << p.name;
+      EXPECT_GE(it->lower, p.lower) << p.name;
+      EXPECT_LE(it->upper, p.upper) << p.name;
+      const double v = NeutralValue(*it);
+      EXPECT_GE(v, it->lower) << p.name;
+      EXPECT_LE(v, it->upper) << p.name;
+    }
+  }
+  EXPECT_THROW(LoopParameterSettings({"levitation"}, scales, {}), std::invalid_argument);
+}
+
+TEST(Loop, SegmentationNoiseCountsOneFrameFlicker) {
+  std::vector<BitMask> masks;
+  for (int f = 0; f < 5; ++f) {
+    BitMask m(100, 20);
+    m.SetSpan(5, 10, 30 + 2 * f);   // grows steadily: motion, not noise
+    if (f == 2) m.SetSpan(10, 0, 7);  // 7 pixels only in frame 2: flicker
+    masks.push_back(m);
+  }
+  // Frames 1, 2, 3: flicker 0, 7, 0 (the steady growth cancels) -> mean 7 / 3.
+  EXPECT_DOUBLE_EQ(SegmentationNoisePx(masks), 7.0 / 3.0);
+  masks[1].SetSpan(12, 0, 5);
+  masks[3].SetSpan(14, 0, 3);
+  EXPECT_DOUBLE_EQ(SegmentationNoisePx(masks), 5.0);  // 5, 7, 3 -> mean 5
+  EXPECT_EQ(SegmentationNoisePx({masks[0], masks[1]}), 0.0);
+}
+
+}  // namespace
+}  // namespace calib

@@ -1,0 +1,265 @@
+// The loop report: report.json round trip and content, report.html with its
+// gnuplot SVG plots (or a clear notice without gnuplot), determinism.
+
+#include "calib/results/loop_report.h"
+#include "calib/results/report_html.h"
+
+#include "calib/evaluator/rasterizer.h"
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+int Count(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+// A residual analysis of a rectangle against a mesh shifted right by
+// `shift` px over `frames` frames.
+ResidualAnalysis ShiftAnalysis(const std::string& name, double shift, int frames) {
+  const Mesh mesh = testing::MakeGridMesh(10, 6, 10.0, Vec2(100.0, 100.0));
+  Scene scene;
+  scene.num_frames = frames;
+  std::vector<BitMask> object;
+  for (int f = 0; f < frames; ++f) {
+    BitMask m(320, 240);
+    for (int y = 100; y < 160; ++y) m.SetSpan(y, 100, 200);
+    object.push_back(m);
+  }
+  ResidualAnalyzer analyzer(mesh, scene, object, {}, name);
+  std::vector<Vec2> positions = mesh.rest_positions;
+  for (Vec2& p : positions) p.x() += shift;
+  BitMask mesh_mask(320, 240);
+  Rasterizer().RasterizeMesh(mesh, positions, mesh_mask);
+  for (int f = 0; f < frames; ++f) analyzer.AddFrame(f, positions, mesh_mask);
+  return analyzer.Finish();
+}
+
+RecordingScore Error(const std::string& recording, int64_t per_frame, int frames) {
+  RecordingScore e;
+  e.recording = recording;
+  for (int f = 0; f < frames; ++f) {
+    e.frame_xor.push_back(per_frame + (f % 7) * 10);
+    e.frame_iou.push_back(0.9 + 0.001 * (f % 5));
+    e.xor_sum += e.frame_xor.back();
+  }
+  e.mean_iou = 0.902;
+  return e;
+}
+
+// A report as the loop would fill it, with an overlay PNG in `dir`.
+LoopReport MakeReport(const fs::path& dir) {
+  LoopReport r;
+  r.title = "calib loop: test";
+  r.command = "calib loop --train a --holdout b --out x";
+  r.seed = 7;
+  r.selection_rule = "keep an effect when the held-out XOR sum drops by more than 2%";
+  r.run_time_s = 12.5;
+  r.recordings = {{"a", "/data/a", "train", 40, 30.0}, {"b", "/data/b", "holdout", 40, 30.0}};
+
+  ReportStage base;
+  base.name = "base";
+  base.decision = StageDecision::kBase;
+  base.parameters = {{"k_D", 400.0}, {"tau", 0.1}};
+  base.errors = {Error("a", 1000, 40), Error("b", 1200, 40)};
+  base.criterion = "held-out XOR sum";
+  base.criterion_value = static_cast<double>(base.errors[1].xor_sum);
+  base.reason = "the paper's model";
+  base.evaluations = 160;
+  base.calibration_time_s = 3.0;
+
+  ReportStage plastic = base;
+  plastic.name = "base+plasticity";
+  plastic.effect_tried = "plasticity";
+  plastic.decision = StageDecision::kAccepted;
+  plastic.effects = {"plasticity"};
+  plastic.parameters["plastic_yield_strain"] = 0.04;
+  plastic.errors = {Error("a", 600, 40), Error("b", 700, 40)};
+  plastic.reason = "held-out XOR -42%";
+
+  ReportStage friction = plastic;
+  friction.name = "base+plasticity+table_friction";
+  friction.effect_tried = "table_friction";
+  friction.decision = StageDecision::kRejected;
+  friction.effects = {"plasticity", "table_friction"};
+  friction.errors = {Error("a", 590, 40), Error("b", 710, 40)};
+  friction.reason = "held-out XOR +1%: no gain";
+  r.stages = {base, plastic, friction};
+
+  const ResidualAnalysis before = ShiftAnalysis("a", 6.0, 40);
+  const ResidualAnalysis after = ShiftAnalysis("a", 2.0, 40);
+  r.rounds.push_back({1, "base", TraceHypotheses(before, {})});
+  r.rounds.push_back({2, "base+plasticity", TraceHypotheses(after, {"plasticity"})});
+  r.effects_kept = {"plasticity"};
+  r.residuals = {{"a", "base", before}, {"a", "base+plasticity", after}};
+
+  fs::create_directories(dir / "overlays");
+  cv::Mat image(60, 80, CV_8UC3, cv::Scalar(30, 90, 200));
+  cv::imwrite((dir / "overlays" / "a_base_000012.png").string(), image);
+  r.overlays = {{"a", "base", 12, 1060, 0.9, "overlays/a_base_000012.png", "worst frame"}};
+  r.notes = {"a note with <html> & \"quotes\""};
+  return r;
+}
+
+bool HaveGnuplot() {
+  std::string message;
+  return GnuplotAvailable("gnuplot", &message);
+}
+
+TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
+  const fs::path dir = testing::ScratchDir("loop_report_json");
+  const LoopReport report = MakeReport(dir);
+  WriteLoopReportJson(dir / "report.json", report);
+  const LoopReport back = ReadLoopReportJson(dir / "report.json");
+  EXPECT_EQ(ToJson(back).dump(), ToJson(report).dump());
+
+  const nlohmann::json doc = nlohmann::json::parse(ReadText(dir / "report.json"));
+  EXPECT_EQ(doc["format"], "calib-loop-report/1");
+  EXPECT_EQ(doc["effects_kept"], nlohmann::json::array({"plasticity"}));
+  EXPECT_EQ(doc["final_model"], "base+plasticity") << "the last accepted stage";
+  ASSERT_EQ(doc["error_table"].size(), 2u);
+  const auto& row_b = doc["error_table"][1];
+  EXPECT_EQ(row_b["recording"], "b");
+  EXPECT_EQ(row_b["role"], "holdout");
+  EXPECT_EQ(row_b["before"]["xor_sum"], report.stages[0].errors[1].xor_sum);
+  EXPECT_EQ(row_b["after"]["xor_sum"], report.stages[1].errors[1].xor_sum);
+  EXPECT_DOUBLE_EQ(row_b["after"]["mean_iou"].get<double>(), 0.902);
+  EXPECT_DOUBLE_EQ(doc["final_parameters"]["plastic_yield_strain"].get<double>(), 0.04);
+  // Hypotheses with their evidence.
+  const auto& first = doc["rounds"][0]["hypotheses"][0];
+  EXPECT_TRUE(first.contains("confidence"));
+  EXPECT_GE(first["evidence"].size(), 2u);
+  EXPECT_FALSE(first["evidence"][0]["statement"].get<std::string>().empty());
+  // Round 2 leaves out the effect already in the model.
+  for (const auto& h : doc["rounds"][1]["hypotheses"]) EXPECT_NE(h["effect"], "plasticity");
+  // The residuals are written without per-frame records.
+  EXPECT_FALSE(doc["residuals"][0]["analysis"].contains("frames"));
+}
+
+TEST(LoopReport, MalformedJsonNamesTheKey) {
+  const fs::path dir = testing::ScratchDir("loop_report_bad");
+  nlohmann::json doc = ToJson(MakeReport(dir));
+  doc["stages"][1].erase("decision");
+  try {
+    LoopReportFromJson(doc);
+    FAIL() << "missing key accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("stages[1].decision"), std::string::npos) << e.what();
+  }
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][2]["decision"] = "maybe";
+  EXPECT_THROW(LoopReportFromJson(doc), std::invalid_argument);
+  EXPECT_THROW(ReadLoopReportJson(dir / "absent.json"), std::runtime_error);
+}
+
+TEST(LoopReport, StagesAndWorstFrames) {
+  const LoopReport report = MakeReport(testing::ScratchDir("loop_report_stages"));
+  ASSERT_NE(report.FinalStage(), nullptr);
+  EXPECT_EQ(report.FinalStage()->name, "base+plasticity");
+  EXPECT_EQ(report.BaseStage()->name, "base");
+  EXPECT_EQ(LoopReport().FinalStage(), nullptr);
+  EXPECT_EQ(WorstFrames({5, 9, 8, 1, 9, 3, 7}, 3, 2), (std::vector<int>{1, 4, 6}));
+  EXPECT_EQ(WorstFrames({5, 9, 8}, 5, 1), (std::vector<int>{1, 2, 0}));
+  EXPECT_EQ(StageDecisionFromString(ToString(StageDecision::kRejected)), StageDecision::kRejected);
+}
+
+TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
+  if (!HaveGnuplot()) GTEST_SKIP() << "gnuplot is not installed (Debian: gnuplot-nox)";
+  const fs::path dir = testing::ScratchDir("loop_report_html");
+  const LoopReport report = MakeReport(dir);
+  const HtmlReportSummary summary = WriteLoopReport(dir, report);
+  EXPECT_TRUE(summary.plots_made) << summary.plot_message;
+  // Bars, two per-frame error plots, two heat maps.
+  EXPECT_EQ(summary.plots, 5);
+  EXPECT_EQ(summary.overlays, 1);
+  const std::string html = ReadText(dir / "report.html");
+  EXPECT_EQ(Count(html, "<svg"), summary.plots);
+  EXPECT_EQ(Count(html, "</svg>"), summary.plots);
+  EXPECT_EQ(html.find("<?xml"), std::string::npos) << "SVG inlined without its prologue";
+  EXPECT_NE(html.find("<image"), std::string::npos) << "heat maps are gnuplot images";
+  EXPECT_NE(html.find("src=\"overlays/a_base_000012.png\""), std::string::npos);
+  EXPECT_NE(html.find("base+plasticity"), std::string::npos);
+  EXPECT_NE(html.find(std::to_string(report.stages[1].errors[1].xor_sum)), std::string::npos);
+  EXPECT_NE(html.find("a note with &lt;html&gt; &amp; &quot;quotes&quot;"), std::string::npos);
+  EXPECT_EQ(html.find("This report has no plots"), std::string::npos);
+  EXPECT_TRUE(fs::exists(dir / "report.json"));
+
+  // Same report, same bytes.
+  const fs::path again = testing::ScratchDir("loop_report_html_again");
+  MakeReport(again);
+  WriteLoopReport(again, report);
+  EXPECT_EQ(ReadText(again / "report.html"), html);
+  EXPECT_EQ(ReadText(again / "report.json"), ReadText(dir / "report.json"));
+
+  // Embedded overlays.
+  HtmlReportOptions embed;
+  embed.embed_images = true;
+  WriteLoopReportHtml(dir / "embedded.html", report, embed);
+  EXPECT_NE(ReadText(dir / "embedded.html").find("src=\"data:image/png;base64,iVBORw0KGgo"),
+            std::string::npos);
+}
+
+TEST(LoopReportHtml, WithoutGnuplotSaysSoOrThrows) {
+  const fs::path dir = testing::ScratchDir("loop_report_nognuplot");
+  const LoopReport report = MakeReport(dir);
+  HtmlReportOptions options;
+  options.gnuplot.executable = (dir / "no-such-gnuplot").string();
+  const HtmlReportSummary summary = WriteLoopReportHtml(dir / "report.html", report, options);
+  EXPECT_FALSE(summary.plots_made);
+  EXPECT_EQ(summary.plots, 0);
+  const std::string html = ReadText(dir / "report.html");
+  EXPECT_EQ(html.find("<svg"), std::string::npos);
+  EXPECT_NE(html.find("This report has no plots"), std::string::npos);
+  EXPECT_NE(html.find("gnuplot-nox"), std::string::npos);
+  EXPECT_NE(html.find("<table>"), std::string::npos) << "the tables are still there";
+
+  options.require_plots = true;
+  try {
+    WriteLoopReportHtml(dir / "report2.html", report, options);
+    FAIL() << "require_plots without gnuplot must throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("gnuplot-nox"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Gnuplot, RendersSvgAndReportsErrors) {
+  if (!HaveGnuplot()) GTEST_SKIP() << "gnuplot is not installed (Debian: gnuplot-nox)";
+  const std::string script =
+      Datablock("d", {{0, 1}, {1, 3}, {2, NAN}, {3, 2}}) + "plot $d using 1:2 with lines title " +
+      GnuplotQuote("a \"quoted\" title_with_underscores") + "\n";
+  const std::string svg = RenderSvg(script, GnuplotOptions{});
+  EXPECT_NE(svg.find("<svg"), std::string::npos);
+  EXPECT_NE(svg.find("title_with_underscores"), std::string::npos);
+  EXPECT_EQ(RenderSvg(script, GnuplotOptions{}), svg) << "deterministic";
+  try {
+    RenderSvg("plot $nothing using 1:2\n", GnuplotOptions{});
+    FAIL() << "a bad script must throw";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("gnuplot"), std::string::npos) << e.what();
+  }
+  GnuplotOptions bad;
+  bad.width_px = 10;
+  EXPECT_THROW(RenderSvg(script, bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace calib
