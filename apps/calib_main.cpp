@@ -2,6 +2,7 @@
 // calib::jobs and prints what it did. Every error from bad input ends here as
 // one message on stderr and exit status 2.
 
+#include "calib/core/model_definition.h"
 #include "calib/core/parameters.h"
 #include "calib/jobs/commands.h"
 #include "calib/synth/scenario.h"
@@ -23,6 +24,14 @@ namespace {
 
 using calib::CommandSettings;
 
+// The model: the base terms plus effects (docs/effects.md).
+void AddEffectsOption(CLI::App* cmd, CommandSettings* settings) {
+  cmd->add_option("--effects", settings->model.effects,
+                  "effects added to the base model, comma-separated (docs/effects.md); a "
+                  "parameter file then also names their parameters")
+      ->delimiter(',');
+}
+
 // Options shared by every subcommand that meshes and simulates a recording.
 void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* integrator,
                      std::string* cache_dir, bool* no_cache) {
@@ -35,6 +44,7 @@ void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* inte
       ->capture_default_str();
   cmd->add_option("--cache-dir", *cache_dir, "segmentation cache folder")->capture_default_str();
   cmd->add_flag("--no-cache", *no_cache, "do not read or write the segmentation cache");
+  AddEffectsOption(cmd, settings);
 }
 
 void Finish(CommandSettings* settings, const std::string& integrator, const std::string& cache_dir,
@@ -95,6 +105,7 @@ int main(int argc, char** argv) {
   AddModelOptions(score, &settings, &integrator, &cache_dir, &no_cache);
 
   auto* params_cmd = app.add_subcommand("params", "list the model's parameters");
+  AddEffectsOption(params_cmd, &settings);
 
   std::filesystem::path scenario_path;
   std::filesystem::path synth_out;
@@ -142,7 +153,7 @@ int main(int argc, char** argv) {
       fmt::print("{}\n", summary.BriefReport());
       fmt::print("time: {:.1f} s, size: {:.2f} MB\n", summary.total_s, summary.bytes / 1e6);
     } else if (*params_cmd) {
-      for (const auto& spec : calib::BaseModelParameterSpecs()) {
+      for (const auto& spec : calib::ModelParameterSpecs(settings.model)) {
         fmt::print("{:<6} {}{}, {}]  {}  ({})\n", spec.name, spec.lower_open ? "(" : "[",
                    spec.lower, spec.upper, spec.description, spec.unit);
       }

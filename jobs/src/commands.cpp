@@ -79,7 +79,7 @@ PreparedRecording Prepare(const std::filesystem::path& recording_dir,
 }  // namespace
 
 bool CommandSettings::IsValid(std::string* error) const {
-  return preparation.IsValid(error) && simulation.IsValid(error);
+  return preparation.IsValid(error) && simulation.IsValid(error) && model.IsValid(error);
 }
 
 MeshSummary RunMesh(const std::filesystem::path& recording_dir,
@@ -115,7 +115,7 @@ SimulateSummary RunSimulate(const std::filesystem::path& recording_dir,
                             const std::filesystem::path& params_file,
                             const std::filesystem::path& out_dir, const SimulateOptions& options,
                             const CommandSettings& settings) {
-  const ParameterValues values = LoadParameterFile(params_file, BaseModelParameterSpecs());
+  const ParameterValues values = LoadParameterFile(params_file, ModelParameterSpecs(settings.model));
   const PreparedRecording prepared = Prepare(recording_dir, settings);
   const int num_frames = prepared.scene.num_frames;
   for (int f : options.png_frames) {
@@ -166,8 +166,8 @@ SimulateSummary RunSimulate(const std::filesystem::path& recording_dir,
       panel.copyTo(worst_image);
     }
   };
-  Evaluator evaluator(prepared, settings.simulation);
-  summary.result = evaluator.Evaluate(ModelParameters::FromValues(values), on_frame);
+  Evaluator evaluator(prepared, settings.simulation, settings.model);
+  summary.result = evaluator.Evaluate(values, on_frame);
   if (options.write_video) video.Close();
   if (!worst_image.empty()) {
     const auto png = out_dir / fmt::format("overlay_worst_{:06d}.png", summary.worst_frame);
@@ -182,10 +182,10 @@ SimulateSummary RunSimulate(const std::filesystem::path& recording_dir,
 EvaluationResult RunScore(const std::filesystem::path& recording_dir,
                           const std::filesystem::path& params_file,
                           const CommandSettings& settings) {
-  const ParameterValues values = LoadParameterFile(params_file, BaseModelParameterSpecs());
+  const ParameterValues values = LoadParameterFile(params_file, ModelParameterSpecs(settings.model));
   const PreparedRecording prepared = Prepare(recording_dir, settings);
-  Evaluator evaluator(prepared, settings.simulation);
-  return evaluator.Evaluate(ModelParameters::FromValues(values));
+  Evaluator evaluator(prepared, settings.simulation, settings.model);
+  return evaluator.Evaluate(values);
 }
 
 }  // namespace calib

@@ -128,7 +128,8 @@ std::unique_ptr<Objective> MakeRecordingObjective(const JobSpec& spec,
     prepared.push_back(
         std::make_shared<const PreparedRecording>(PrepareRecording(LoadRecording(folder), preparation)));
   }
-  return std::make_unique<RecordingObjective>(std::move(prepared), spec.model.simulation);
+  return std::make_unique<RecordingObjective>(std::move(prepared), spec.model.simulation,
+                                              ModelDefinition{spec.model.effects});
 }
 
 JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOptions& options) {
@@ -193,6 +194,7 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
     CommandSettings settings;
     settings.preparation = preparation;
     settings.simulation = spec.model.simulation;
+    settings.model = ModelDefinition{spec.model.effects};
     JobReportOptions report_options;
     report_options.simulate = options.report_simulations;
     report_options.write_video = options.report_video;

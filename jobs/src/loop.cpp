@@ -156,9 +156,6 @@ double NeutralValue(const ParameterSetting& s) {
   return s.lower;
 }
 
-// =========================================================================
-// The objective of a model with effects.
-
 namespace {
 
 std::string RecordingName(const PreparedRecording& prepared) {
@@ -167,59 +164,7 @@ std::string RecordingName(const PreparedRecording& prepared) {
   return name.empty() ? prepared.recording.folder.string() : name;
 }
 
-class ModelWorker final : public ObjectiveWorker {
- public:
-  ModelWorker(const std::vector<std::shared_ptr<const PreparedRecording>>& recordings,
-              const SimulationOptions& options, const ModelDefinition& model) {
-    evaluators_.reserve(recordings.size());
-    for (const auto& prepared : recordings) {
-      evaluators_.emplace_back(*prepared, options, model);
-      names_.push_back(RecordingName(*prepared));
-      frames_total_ += prepared->scene.num_frames;
-    }
-  }
-
-  ObjectiveResult Evaluate(const ParameterValues& values) override {
-    results_.clear();
-    for (Evaluator& evaluator : evaluators_) {
-      results_.push_back(evaluator.Evaluate(values));
-      if (!results_.back().ok()) break;
-    }
-    ObjectiveResult result = CombineRecordingResults(results_, names_);
-    result.iou.frames_total = frames_total_;
-    return result;
-  }
-
- private:
-  std::vector<Evaluator> evaluators_;
-  std::vector<std::string> names_;
-  std::vector<EvaluationResult> results_;
-  int frames_total_ = 0;
-};
-
 }  // namespace
-
-ModelObjective::ModelObjective(std::vector<std::shared_ptr<const PreparedRecording>> recordings,
-                               SimulationOptions options, ModelDefinition model)
-    : recordings_(std::move(recordings)), options_(options), model_(std::move(model)) {
-  if (recordings_.empty()) {
-    throw std::invalid_argument("the objective needs at least one training recording");
-  }
-  std::string error;
-  if (!options_.IsValid(&error)) throw std::invalid_argument(error);
-  if (!model_.IsValid(&error)) throw std::invalid_argument(error);
-}
-
-std::unique_ptr<ObjectiveWorker> ModelObjective::MakeWorker() const {
-  return std::make_unique<ModelWorker>(recordings_, options_, model_);
-}
-
-std::string ModelObjective::Describe() const {
-  int frames = 0;
-  for (const auto& r : recordings_) frames += r->scene.num_frames;
-  return fmt::format("model {}, {} training recording{}, {} frames", model_.ToString(),
-                     recordings_.size(), recordings_.size() == 1 ? "" : "s", frames);
-}
 
 // =========================================================================
 // Segmentation noise.
@@ -454,7 +399,7 @@ std::pair<ParameterValues, double> Loop::RunJob(const std::string& name,
   for (const LoopRecording& r : recs_) {
     if (r.train) train.push_back(r.prepared);
   }
-  ModelObjective objective(train, o_.simulation, ModelDefinition{effects});
+  RecordingObjective objective(train, o_.simulation, ModelDefinition{effects});
   ThreadBatchEvaluator evaluator(objective, threads_);
   const int64_t job = store_->CreateJob(spec.name, ToJson(spec));
   RunControl control;
@@ -474,7 +419,7 @@ double Loop::TrainingScore(const std::vector<std::string>& effects, const Parame
     if (r.train) train.push_back(r.prepared);
   }
   const ObjectiveResult result =
-      ModelObjective(train, o_.simulation, ModelDefinition{effects}).MakeWorker()->Evaluate(values);
+      RecordingObjective(train, o_.simulation, ModelDefinition{effects}).MakeWorker()->Evaluate(values);
   return result.ok() ? result.score : std::numeric_limits<double>::infinity();
 }
 
@@ -509,7 +454,13 @@ Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fi
         effect_only.push_back(s);
       }
     }
-    const int64_t budget1 = std::max<int64_t>(2, budget / 2);
+    // Phase 1 rarely finds much by itself (the previous model's values are
+    // a fit without the effect: a stiffness or a damping there already
+    // imitates part of it), so it gets a quarter of the budget; phase 2,
+    // where those values can move away from their imitation, the rest,
+    // with a step wide enough to leave the previous optimum's basin
+    // (kJointSigma of each unit box).
+    const int64_t budget1 = std::max<int64_t>(2, budget / 4);
     const int64_t budget2 = std::max<int64_t>(2, budget - budget1);
     std::vector<double> x1 = SearchSpace(effect_only).ToUnit(start_values);
     for (double& u : x1) u = std::clamp(u, 0.0, 1.0);
@@ -517,8 +468,9 @@ Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fi
                                           &x1, 0.3, budget1, seed, &fit.evaluations);
     std::vector<double> x2 = SearchSpace(settings).ToUnit(values1);
     for (double& u : x2) u = std::clamp(u, 0.0, 1.0);
-    const auto [values2, score2] = RunJob(JobName(index, effects), effects, settings, &x2, 0.1,
-                                          budget2, seed + 500, &fit.evaluations);
+    constexpr double kJointSigma = 0.25;
+    const auto [values2, score2] = RunJob(JobName(index, effects), effects, settings, &x2,
+                                          kJointSigma, budget2, seed + 500, &fit.evaluations);
     const double score0 = TrainingScore(effects, start_values);
     ++fit.evaluations;
     fit.values = values2;

@@ -18,10 +18,6 @@ CandidateStatus CandidateStatusFromString(std::string_view text) {
       fmt::format("candidate status '{}' is unknown: expected ok or failed", text));
 }
 
-ModelParameters ToModelParameters(const ParameterValues& values) {
-  return ModelParameters::FromValues(values);
-}
-
 ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& results,
                                         const std::vector<std::string>& names) {
   ObjectiveResult out;
@@ -65,10 +61,10 @@ namespace {
 class RecordingWorker final : public ObjectiveWorker {
  public:
   RecordingWorker(const std::vector<std::shared_ptr<const PreparedRecording>>& recordings,
-                  const SimulationOptions& options) {
+                  const SimulationOptions& options, const ModelDefinition& model) {
     evaluators_.reserve(recordings.size());
     for (const auto& prepared : recordings) {
-      evaluators_.emplace_back(*prepared, options);
+      evaluators_.emplace_back(*prepared, options, model);
       names_.push_back(prepared->recording.folder.filename().string());
       if (names_.back().empty()) names_.back() = prepared->recording.folder.string();
       frames_total_ += prepared->scene.num_frames;
@@ -77,10 +73,9 @@ class RecordingWorker final : public ObjectiveWorker {
   }
 
   ObjectiveResult Evaluate(const ParameterValues& values) override {
-    const ModelParameters params = ToModelParameters(values);
     results_.clear();
     for (Evaluator& evaluator : evaluators_) {
-      results_.push_back(evaluator.Evaluate(params));
+      results_.push_back(evaluator.Evaluate(values));
       if (!results_.back().ok()) break;  // the candidate has failed: spare the rest
     }
     ObjectiveResult result = CombineRecordingResults(results_, names_);
@@ -98,23 +93,27 @@ class RecordingWorker final : public ObjectiveWorker {
 }  // namespace
 
 RecordingObjective::RecordingObjective(
-    std::vector<std::shared_ptr<const PreparedRecording>> recordings, SimulationOptions options)
-    : recordings_(std::move(recordings)), options_(options) {
+    std::vector<std::shared_ptr<const PreparedRecording>> recordings, SimulationOptions options,
+    ModelDefinition model)
+    : recordings_(std::move(recordings)), options_(options), model_(std::move(model)) {
   if (recordings_.empty()) {
     throw std::invalid_argument("the objective needs at least one training recording");
   }
   std::string error;
   if (!options_.IsValid(&error)) throw std::invalid_argument(error);
+  if (!model_.IsValid(&error)) throw std::invalid_argument(error);
 }
 
 std::unique_ptr<ObjectiveWorker> RecordingObjective::MakeWorker() const {
-  return std::make_unique<RecordingWorker>(recordings_, options_);
+  return std::make_unique<RecordingWorker>(recordings_, options_, model_);
 }
 
 std::string RecordingObjective::Describe() const {
   int frames = 0;
   for (const auto& r : recordings_) frames += r->scene.num_frames;
-  return fmt::format("{} training recording{}, {} frames", recordings_.size(),
+  const std::string model =
+      model_.effects.empty() ? std::string() : fmt::format("model {}, ", model_.ToString());
+  return fmt::format("{}{} training recording{}, {} frames", model, recordings_.size(),
                      recordings_.size() == 1 ? "" : "s", frames);
 }
 

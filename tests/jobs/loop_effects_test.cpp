@@ -41,12 +41,13 @@ void ExpectNamed(const std::string& train, const std::string& holdout) {
   EXPECT_TRUE(std::filesystem::exists(result.report_json));
 }
 
-// Known gaps (docs/loop.md, "Known gaps"): on these bundled pairs the loop
-// does not yet name the effect switched on (the tracing ranks it too low, or
+// Viscoelastic relaxation is named and kept. Known gaps (docs/loop.md,
+// "Known gaps"): on the other bundled pairs the loop does not yet name the
+// effect switched on (the tracing ranks it too low, or
 // the calibrated effect does not lower the held-out error); the tests are
 // kept, disabled, as the acceptance checks still to meet. Run them with
 // --gtest_also_run_disabled_tests.
-TEST(LoopOnSyntheticEffect, DISABLED_Viscoelastic) {
+TEST(LoopOnSyntheticEffect, Viscoelastic) {
   ExpectNamed("push_viscoelastic", "push_viscoelastic_offset");
 }
 TEST(LoopOnSyntheticEffect, DISABLED_Plasticity) {

@@ -67,7 +67,7 @@ TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
   const auto holdout = ExamplesDir() / "push_offset";
   LoopOptions options = testing::TestLoopOptions({train}, {holdout}, "loop_determinism_1");
   options.budget = 24;
-  options.effect_budget = 12;  // two phases of 6: a population cut to the budget
+  options.effect_budget = 12;  // phases of 3 and 9: populations cut to the budget
   options.tries_per_round = 1;
   options.min_confidence = 0.0;  // always try the top hypothesis
   options.threads = 1;

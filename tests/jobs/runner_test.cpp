@@ -146,6 +146,38 @@ TEST(RunnerDeterminismOnARecording, SameHistoryAtOneTwoAndFourThreads) {
   }
 }
 
+// A job whose spec adds effects calibrates that model: the objective
+// simulates the effects, so their parameters change the score.
+TEST(RunnerObjective, SimulatesTheEffectsTheSpecAdds) {
+  const fs::path dir = testing::ScratchDir("runner_effects");
+  JobSpec spec = testing::SyntheticJobSpec(
+      "{name: random}", "model: {substeps: 4, mesh: {edge_length_px: 40}}", "recording");
+  spec.train = {fs::path(CALIB_SOURCE_DIR) / "examples" / "push_viscoelastic"};
+  spec.model.effects = {"viscoelastic"};
+  PreparationOptions preparation = spec.model.preparation;
+  preparation.cache_dir = dir / "cache";
+  const std::unique_ptr<Objective> objective = MakeRecordingObjective(spec, preparation);
+  EXPECT_CONTAINS(objective->Describe(), "model base+viscoelastic");
+  const std::unique_ptr<ObjectiveWorker> worker = objective->MakeWorker();
+  ParameterValues values = {{"k_D", 400.0}, {"k_d", 2.0},         {"k_A", 200.0},
+                            {"k_phi", 50.0}, {"mass", 0.2},        {"tau", 0.3},
+                            {"visco_share", 0.0}, {"visco_time_s", 1.0}};
+  const ObjectiveResult elastic = worker->Evaluate(values);
+  values["visco_share"] = 0.8;
+  const ObjectiveResult relaxing = worker->Evaluate(values);
+  ASSERT_TRUE(elastic.ok()) << elastic.reason;
+  ASSERT_TRUE(relaxing.ok()) << relaxing.reason;
+  EXPECT_NE(elastic.score, relaxing.score) << "visco_share must act on the simulation";
+  // A candidate without the effect's parameters is refused, naming one.
+  values.erase("visco_time_s");
+  try {
+    worker->Evaluate(values);
+    ADD_FAILURE() << "a candidate without visco_time_s was evaluated";
+  } catch (const std::exception& e) {
+    EXPECT_CONTAINS(std::string(e.what()), "visco_time_s");
+  }
+}
+
 TEST(RunnerFailurePolicy, PenaltyStoresEveryFailureWithItsReason) {
   const JobSpec spec = testing::SyntheticJobSpec(
       "{name: random}", "failure_policy: {mode: penalty, penalty_score: 1.0e7}");

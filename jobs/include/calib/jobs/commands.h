@@ -5,6 +5,7 @@
 // ParameterError, std::invalid_argument, std::runtime_error) with a message
 // naming the file, key or value.
 
+#include "calib/core/model_definition.h"
 #include "calib/evaluator/evaluation.h"
 
 #include <filesystem>
@@ -17,6 +18,9 @@ namespace calib {
 struct CommandSettings {
   PreparationOptions preparation;
   SimulationOptions simulation;
+  /// The base model plus these effects; parameter files must name exactly
+  /// ModelParameterSpecs(model).
+  ModelDefinition model;
   bool IsValid(std::string* error) const;
 };
 

@@ -87,22 +87,6 @@ std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::strin
 /// was without the effect; the warm start of a new effect.
 double NeutralValue(const ParameterSetting& setting);
 
-/// The calibration objective of a model with effects: the XOR pixels summed
-/// over every training recording and frame (RecordingObjective for any
-/// ModelDefinition; each worker owns one Evaluator per recording).
-class ModelObjective final : public Objective {
- public:
-  ModelObjective(std::vector<std::shared_ptr<const PreparedRecording>> recordings,
-                 SimulationOptions options, ModelDefinition model);
-  std::unique_ptr<ObjectiveWorker> MakeWorker() const override;
-  std::string Describe() const override;
-
- private:
-  std::vector<std::shared_ptr<const PreparedRecording>> recordings_;
-  SimulationOptions options_;
-  ModelDefinition model_;
-};
-
 /// Segmentation noise of a recording: per frame, the object pixels that
 /// differ from both neighbouring frames while those agree (one-frame
 /// flicker, which no motion smoother than the frame rate makes). Returns the

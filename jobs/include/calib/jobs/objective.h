@@ -18,6 +18,7 @@
 //    catches it and records a failed evaluation whose reason starts with
 //    "exception: ", which the failure policy may retry.
 
+#include "calib/core/model_definition.h"
 #include "calib/core/parameters.h"
 #include "calib/core/simulator.h"
 #include "calib/evaluator/evaluation.h"
@@ -82,21 +83,19 @@ class Objective {
   virtual std::string Describe() const = 0;
 };
 
-/// The one place where a candidate's named values become the simulator's
-/// parameters (model terms beyond the base model add their fields here).
-/// `values` must hold every base-model parameter (ValidateParameters).
-ModelParameters ToModelParameters(const ParameterValues& values);
-
 /// The calibration objective: simulate every training recording with the
-/// candidate and sum the XOR pixels over all frames. A candidate is failed
+/// candidate (the base model plus the model's effects; a candidate names
+/// every parameter of ModelParameterSpecs(model)) and sum the XOR pixels
+/// over all frames. A candidate is failed
 /// when any recording's simulation fails; its reason names the recording
 /// and frame.
 class RecordingObjective final : public Objective {
  public:
-  /// `recordings` non-empty; `options` valid. The recordings are shared
+  /// `recordings` non-empty; `options` and `model` valid (else
+  /// std::invalid_argument naming the culprit). The recordings are shared
   /// read-only by every worker.
   RecordingObjective(std::vector<std::shared_ptr<const PreparedRecording>> recordings,
-                     SimulationOptions options);
+                     SimulationOptions options, ModelDefinition model = {});
 
   std::unique_ptr<ObjectiveWorker> MakeWorker() const override;
   std::string Describe() const override;
@@ -108,6 +107,7 @@ class RecordingObjective final : public Objective {
  private:
   std::vector<std::shared_ptr<const PreparedRecording>> recordings_;
   SimulationOptions options_;
+  ModelDefinition model_;
 };
 
 /// Combines per-recording results into one ObjectiveResult (score, IoU
