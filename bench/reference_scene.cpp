@@ -56,6 +56,15 @@ PreparedRecording MakeReferenceScene(const ReferenceSceneOptions& options) {
   return prepared;
 }
 
+const PreparedRecording& ShortReferenceScene() {
+  static const PreparedRecording prepared = [] {
+    ReferenceSceneOptions options;
+    options.num_frames = 60;
+    return MakeReferenceScene(options);
+  }();
+  return prepared;
+}
+
 ModelParameters ReferenceParameters() {
   ModelParameters p;
   p.k_distance = 400.0;

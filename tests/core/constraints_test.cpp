@@ -84,18 +84,7 @@ int PlainFindNodeInsideDisc(std::span<const Disc> discs, std::span<const Vec2> x
   return -1;
 }
 
-std::vector<Vec2> Jittered(const std::vector<Vec2>& base, double amount, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<Vec2> out = base;
-  for (Vec2& p : out) {
-    // Not std::uniform_real_distribution: its output differs between
-    // standard libraries.
-    const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
-    const double w = static_cast<double>(rng() >> 11) * 0x1.0p-53;
-    p += amount * Vec2(2.0 * u - 1.0, 2.0 * w - 1.0);
-  }
-  return out;
-}
+using calib::testing::Jittered;
 
 void ExpectSameBits(const std::vector<Vec2>& expected, const std::vector<Vec2>& actual,
                     const std::string& what) {

@@ -18,16 +18,9 @@
 namespace calib {
 namespace {
 
+using calib::testing::RandomPoints;
 using calib::testing::Term;
 using calib::testing::WorstForceError;
-
-template <int N>
-std::array<Vec2, N> RandomPoints(std::mt19937_64& rng, double scale) {
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::array<Vec2, N> p;
-  for (auto& pi : p) pi = scale * Vec2(u(rng), u(rng));
-  return p;
-}
 
 class EnergyTermScale : public ::testing::TestWithParam<double> {};
 

@@ -23,18 +23,7 @@ using calib::testing::MakeGridMesh;
 
 ModelParameters Stiff() { return calib::testing::StiffTestParameters(); }
 
-std::vector<Vec2> Jittered(const std::vector<Vec2>& base, double amount, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<Vec2> out = base;
-  for (Vec2& p : out) {
-    // Not std::uniform_real_distribution: its output differs between
-    // standard libraries.
-    const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
-    const double w = static_cast<double>(rng() >> 11) * 0x1.0p-53;
-    p += amount * Vec2(2.0 * u - 1.0, 2.0 * w - 1.0);
-  }
-  return out;
-}
+using calib::testing::Jittered;
 
 // The model's sums as one scalar loop per element kind, the order of
 // operations of the vectorised kernels: edges (forces[j] += f,

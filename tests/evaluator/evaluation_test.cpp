@@ -12,14 +12,7 @@
 namespace calib {
 namespace {
 
-const PreparedRecording& Reference() {
-  static const PreparedRecording prepared = [] {
-    bench::ReferenceSceneOptions options;
-    options.num_frames = 60;
-    return bench::MakeReferenceScene(options);
-  }();
-  return prepared;
-}
+const PreparedRecording& Reference() { return bench::ShortReferenceScene(); }
 
 TEST(Evaluator, RestShapeMatchesItsOwnMaskInFrameZero) {
   Evaluator evaluator(Reference(), {});

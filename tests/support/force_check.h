@@ -8,8 +8,18 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <random>
 
 namespace calib::testing {
+
+/// N points uniform in [-scale, scale]^2.
+template <int N>
+std::array<Vec2, N> RandomPoints(std::mt19937_64& rng, double scale) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::array<Vec2, N> p;
+  for (auto& pi : p) pi = scale * Vec2(u(rng), u(rng));
+  return p;
+}
 
 /// A term as a function of N stacked node positions: returns the energy and
 /// adds its forces to the second argument.

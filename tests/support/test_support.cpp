@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <random>
 #include <unistd.h>
 
 namespace calib::testing {
@@ -61,6 +62,19 @@ ModelParameters StiffTestParameters(double translation) {
   p.mass = 0.05;
   p.translation = translation;
   return p;
+}
+
+std::vector<Vec2> Jittered(const std::vector<Vec2>& base, double amount, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<Vec2> out = base;
+  for (Vec2& p : out) {
+    // Not std::uniform_real_distribution: its output differs between
+    // standard libraries.
+    const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+    const double w = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+    p += amount * Vec2(2.0 * u - 1.0, 2.0 * w - 1.0);
+  }
+  return out;
 }
 
 }  // namespace calib::testing

@@ -20,6 +20,9 @@ std::filesystem::path ScratchDir(const std::string& name);
 #include "calib/core/mesh.h"
 #include "calib/core/parameters.h"
 
+#include <cstdint>
+#include <vector>
+
 namespace calib::testing {
 
 /// A rectangular patch of nx x ny lattice cells of `spacing` px with its
@@ -30,5 +33,9 @@ Mesh MakeGridMesh(int nx, int ny, double spacing, const Vec2& origin = Vec2::Zer
 /// Stiff, damped base parameters for small test meshes (settle in a few
 /// hundred substeps), with the given translation share.
 ModelParameters StiffTestParameters(double translation = 0.0);
+
+/// `base` with every point moved by up to `amount` in x and y, drawn from
+/// `seed` the same way on every standard library.
+std::vector<Vec2> Jittered(const std::vector<Vec2>& base, double amount, uint64_t seed);
 
 }  // namespace calib::testing
