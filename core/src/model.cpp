@@ -23,22 +23,19 @@ Model::Model(const Mesh& mesh) : mesh_(&mesh) {
   const size_t num_edges = mesh.edges.size(), num_triangles = mesh.triangles.size();
   edge_i_.resize(num_edges);
   edge_j_.resize(num_edges);
-  rest_length_ = mesh.rest_length_px;
-  inv_rest_length_.resize(num_edges);
+  for (std::vector<double>* column : {&rest_length_, &inv_rest_length_}) column->resize(num_edges);
   std::map<std::pair<int, int>, int> edge_index;
   for (size_t e = 0; e < num_edges; ++e) {
     edge_i_[e] = mesh.edges[e][0];
     edge_j_[e] = mesh.edges[e][1];
-    inv_rest_length_[e] = 1.0 / mesh.rest_length_px[e];
     edge_index[{mesh.edges[e][0], mesh.edges[e][1]}] = static_cast<int>(e);
   }
   for (std::vector<int>* column : {&triangle_a_, &triangle_b_, &triangle_c_, &triangle_edge_ab_,
                                    &triangle_edge_bc_, &triangle_edge_ca_}) {
     column->resize(num_triangles);
   }
-  rest_area_ = mesh.rest_area_px2;
   for (std::vector<double>* column :
-       {&inv_rest_area_, &rest_cos_a_, &rest_sin_a_, &rest_cos_b_, &rest_sin_b_}) {
+       {&rest_area_, &inv_rest_area_, &rest_cos_a_, &rest_sin_a_, &rest_cos_b_, &rest_sin_b_}) {
     column->resize(num_triangles);
   }
   for (size_t t = 0; t < num_triangles; ++t) {
@@ -46,11 +43,6 @@ Model::Model(const Mesh& mesh) : mesh_(&mesh) {
     triangle_a_[t] = a;
     triangle_b_[t] = b;
     triangle_c_[t] = c;
-    inv_rest_area_[t] = 1.0 / mesh.rest_area_px2[t];
-    rest_cos_a_[t] = std::cos(mesh.rest_angle_rad[t][0]);
-    rest_sin_a_[t] = std::sin(mesh.rest_angle_rad[t][0]);
-    rest_cos_b_[t] = std::cos(mesh.rest_angle_rad[t][1]);
-    rest_sin_b_[t] = std::sin(mesh.rest_angle_rad[t][1]);
     std::array<int, 3> edge;
     for (int k = 0; k < 3; ++k) {
       const int from = mesh.triangles[t][k], to = mesh.triangles[t][(k + 1) % 3];
@@ -84,6 +76,51 @@ Model::Model(const Mesh& mesh) : mesh_(&mesh) {
         node_contribution_start_[n] + static_cast<int>(per_node[n].size());
     node_contribution_.insert(node_contribution_.end(), per_node[n].begin(), per_node[n].end());
   }
+  ResetRestShape();
+}
+
+void Model::ResetRestShape() {
+  const Mesh& mesh = *mesh_;
+  for (size_t e = 0; e < rest_length_.size(); ++e) {
+    rest_length_[e] = mesh.rest_length_px[e];
+    inv_rest_length_[e] = 1.0 / mesh.rest_length_px[e];
+  }
+  for (size_t t = 0; t < rest_area_.size(); ++t) {
+    rest_area_[t] = mesh.rest_area_px2[t];
+    inv_rest_area_[t] = 1.0 / mesh.rest_area_px2[t];
+    rest_cos_a_[t] = std::cos(mesh.rest_angle_rad[t][0]);
+    rest_sin_a_[t] = std::sin(mesh.rest_angle_rad[t][0]);
+    rest_cos_b_[t] = std::cos(mesh.rest_angle_rad[t][1]);
+    rest_sin_b_[t] = std::sin(mesh.rest_angle_rad[t][1]);
+  }
+}
+
+int Model::SetRestShape(std::span<const Vec2> rest) {
+  const int num_triangles = static_cast<int>(rest_area_.size());
+  for (int t = 0; t < num_triangles; ++t) {
+    const Vec2 &a = rest[triangle_a_[t]], &b = rest[triangle_b_[t]], &c = rest[triangle_c_[t]];
+    if (!(SignedArea(a, b, c) > 0.0)) return t;
+  }
+  for (size_t e = 0; e < rest_length_.size(); ++e) {
+    rest_length_[e] = (rest[edge_j_[e]] - rest[edge_i_[e]]).norm();
+    inv_rest_length_[e] = 1.0 / rest_length_[e];
+  }
+  // Corner k at p[k] from (p[k+1] - p[k]) to (p[k+2] - p[k]), as mesh.h defines it.
+  const auto corner = [](const Vec2& at, const Vec2& next, const Vec2& prev, double& cos_out,
+                         double& sin_out) {
+    const Vec2 u = next - at, w = prev - at;
+    const double inv = 1.0 / (u.norm() * w.norm());
+    cos_out = u.dot(w) * inv;
+    sin_out = Cross(u, w) * inv;
+  };
+  for (int t = 0; t < num_triangles; ++t) {
+    const Vec2 &a = rest[triangle_a_[t]], &b = rest[triangle_b_[t]], &c = rest[triangle_c_[t]];
+    rest_area_[t] = SignedArea(a, b, c);
+    inv_rest_area_[t] = 1.0 / rest_area_[t];
+    corner(a, b, c, rest_cos_a_[t], rest_sin_a_[t]);
+    corner(b, c, a, rest_cos_b_[t], rest_sin_b_[t]);
+  }
+  return -1;
 }
 
 ForceWorkspace Model::MakeWorkspace() const {

@@ -9,6 +9,20 @@
 #include <stdexcept>
 
 namespace calib {
+namespace {
+
+// 1 for the nodes inside a clamp in frame 0.
+std::vector<uint8_t> MarkClamped(const Mesh& mesh, const Scene& scene) {
+  std::vector<uint8_t> clamped(mesh.NumNodes(), 0);
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    for (const RectPx& clamp : scene.clamps) {
+      if (clamp.Contains(mesh.rest_positions[i])) clamped[i] = 1;
+    }
+  }
+  return clamped;
+}
+
+}  // namespace
 
 bool SimulationOptions::IsValid(std::string* error) const {
   auto fail = [&](std::string message) {
@@ -54,16 +68,13 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       f_(mesh.NumNodes(), Vec2::Zero()),
       discs_(scene.num_obstacles),
       definition_(model),
-      parameter_specs_(ModelParameterSpecs(model)) {
+      parameter_specs_(ModelParameterSpecs(model)),
+      initial_motion_(mesh, MarkClamped(mesh, scene)) {
+  clamped_ = MarkClamped(mesh, scene);
   Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (int i = 0; i < mesh.NumNodes(); ++i) {
     const Vec2& p = mesh.rest_positions[i];
-    for (const RectPx& clamp : scene.clamps) {
-      if (clamp.Contains(p)) {
-        clamped_[i] = 1;
-        inverse_weight_[i] = 0.0;
-      }
-    }
+    if (clamped_[i] != 0) inverse_weight_[i] = 0.0;
     rest_centroid_ += p;
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
@@ -101,6 +112,7 @@ void Simulator::Reset(const ModelParameters& params) {
         definition_.ToString()));
   }
   params_ = params;
+  second_order_ = false;
   ResetState();
 }
 
@@ -122,6 +134,22 @@ void Simulator::Reset(const ParameterValues& values) {
   ResetState();
 }
 
+void Simulator::StartFromObservedMotion() {
+  model_.ResetRestShape();
+  std::string error;
+  if (!initial_motion_.Compute(model_, params_, scene_.motion, force_workspace_, &error)) {
+    Fail(std::move(error));
+    return;
+  }
+  if (model_.SetRestShape(initial_motion_.rest_shape()) >= 0) {
+    // The linear estimate turned a triangle over (a deflection too large for
+    // it): rest at the largest share of it that keeps every triangle.
+    initial_motion_.LimitDeflection(model_);
+  }
+  rest_shifted_ = true;
+  std::copy(initial_motion_.velocities().begin(), initial_motion_.velocities().end(), v_.begin());
+}
+
 void Simulator::ResetState() {
   std::copy(mesh_.rest_positions.begin(), mesh_.rest_positions.end(), x_.begin());
   std::copy(mesh_.rest_positions.begin(), mesh_.rest_positions.end(), x_prev_.begin());
@@ -130,6 +158,11 @@ void Simulator::ResetState() {
   status_ = scene_.num_frames > 1 ? SimulationStatus::kRunning : SimulationStatus::kFinished;
   failure_reason_.clear();
   InterpolateObstacles(0.0);
+  if (rest_shifted_) model_.ResetRestShape();
+  rest_shifted_ = false;
+  if (second_order_ && scene_.motion.known && initial_motion_.applicable()) {
+    StartFromObservedMotion();
+  }
 }
 
 void Simulator::InterpolateObstacles(double alpha) {

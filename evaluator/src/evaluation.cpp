@@ -1,9 +1,14 @@
 #include "calib/evaluator/evaluation.h"
 
 #include "calib/evaluator/contour.h"
+#include "calib/evaluator/residual.h"
+
+#include <Eigen/QR>
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace calib {
@@ -41,6 +46,40 @@ Scene BuildScene(const Recording& recording) {
   return scene;
 }
 
+Scene::ObservedMotion EstimateObservedMotion(const Recording& recording,
+                                             std::span<const BitMask> masks) {
+  Scene::ObservedMotion motion;
+  if (recording.clamps.empty() || !recording.obstacles.empty() || masks.empty()) return motion;
+  std::vector<std::pair<double, Vec2>> centroids;  // (frame, centroid)
+  centroids.reserve(masks.size());
+  for (size_t f = 0; f < masks.size(); ++f) {
+    const MaskMoments moments = ComputeMoments(masks[f]);
+    if (moments.area_px > 0) centroids.emplace_back(static_cast<double>(f), moments.centroid_px);
+  }
+  if (centroids.empty() || centroids.front().first != 0.0) return motion;
+  const Vec2 start = centroids.front().second;
+  Vec2 mean = Vec2::Zero();
+  for (const auto& [frame, c] : centroids) mean += c - start;
+  motion.equilibrium_offset_px = mean / static_cast<double>(centroids.size());
+
+  // Centroid(t) ~ c0 + c1 t + c2 t^2 over the first frames; velocity = c1 fps.
+  const int num_fit = static_cast<int>(std::min<size_t>(5, centroids.size()));
+  if (num_fit >= 2) {
+    const int degree = num_fit >= 3 ? 2 : 1;
+    Eigen::MatrixXd basis(num_fit, degree + 1);
+    Eigen::MatrixXd values(num_fit, 2);
+    for (int k = 0; k < num_fit; ++k) {
+      const double t = centroids[k].first;
+      for (int d = 0; d <= degree; ++d) basis(k, d) = std::pow(t, d);
+      values.row(k) = centroids[k].second.transpose();
+    }
+    const Eigen::MatrixXd coefficients = basis.colPivHouseholderQr().solve(values);
+    motion.initial_velocity_px_s = coefficients.row(1).transpose() * recording.fps;
+  }
+  motion.known = true;
+  return motion;
+}
+
 PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
@@ -56,6 +95,7 @@ PreparedRecording PrepareRecording(const Recording& recording, const Preparation
   prepared.mesh = MeshPolygon(prepared.outline, options.mesher);
   prepared.mesh_quality = MeasureQuality(prepared.mesh);
   prepared.scene = BuildScene(recording);
+  prepared.scene.motion = EstimateObservedMotion(recording, prepared.object_masks);
   return prepared;
 }
 

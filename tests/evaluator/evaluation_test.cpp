@@ -9,6 +9,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <functional>
+
 namespace calib {
 namespace {
 
@@ -96,6 +99,70 @@ TEST(BuildScene, TakesObstaclesForceAndClampsFromTheRecording) {
   ASSERT_EQ(scene.clamps.size(), 1u);
   EXPECT_TRUE(scene.clamps[0].Contains(Vec2(25, 45)));
   EXPECT_FALSE(scene.clamps[0].Contains(Vec2(5, 45)));
+}
+
+}  // namespace
+}  // namespace calib
+
+namespace calib {
+namespace {
+
+// A 20 x 60 px block whose top-left corner is at x(f) in frame f.
+std::vector<BitMask> MovingBlock(int frames, const std::function<double(int)>& x) {
+  std::vector<BitMask> masks;
+  for (int f = 0; f < frames; ++f) {
+    BitMask mask(400, 200);
+    const int left = static_cast<int>(std::lround(x(f)));
+    for (int y = 50; y < 110; ++y) mask.SetSpan(y, left, left + 20);
+    masks.push_back(std::move(mask));
+  }
+  return masks;
+}
+
+Recording HangingRecording() {
+  Recording recording;
+  recording.fps = 240.0;
+  recording.clamps.push_back({150, 40, 30, 12});
+  return recording;
+}
+
+TEST(EstimateObservedMotion, MeanOffsetAndStartVelocityOfASwing) {
+  // x(f) = 150 + 80 cos(w f) + 100 sin(w f), period 96 frames, over 5 whole
+  // periods: mean offset -80 px from the start, start velocity 100 w px/frame.
+  const double w = 2.0 * M_PI / 96.0;
+  const std::vector<BitMask> masks = MovingBlock(
+      480, [&](int f) { return 150.0 + 80.0 * std::cos(w * f) + 100.0 * std::sin(w * f); });
+  const Scene::ObservedMotion motion = EstimateObservedMotion(HangingRecording(), masks);
+  ASSERT_TRUE(motion.known);
+  EXPECT_NEAR(motion.equilibrium_offset_px.x(), -80.0, 0.1);
+  EXPECT_NEAR(motion.equilibrium_offset_px.y(), 0.0, 1e-12);
+  // Pixel rounding of the block's position limits the slope's accuracy.
+  const double velocity = 100.0 * w * 240.0;
+  EXPECT_NEAR(motion.initial_velocity_px_s.x(), velocity, 0.1 * velocity);
+  EXPECT_NEAR(motion.initial_velocity_px_s.y(), 0.0, 1e-9);
+}
+
+TEST(EstimateObservedMotion, AStraightMotionHasItsExactVelocity) {
+  const std::vector<BitMask> masks = MovingBlock(9, [](int f) { return 100.0 + 2.0 * f; });
+  const Scene::ObservedMotion motion = EstimateObservedMotion(HangingRecording(), masks);
+  ASSERT_TRUE(motion.known);
+  EXPECT_NEAR(motion.initial_velocity_px_s.x(), 2.0 * 240.0, 1e-9);
+  EXPECT_NEAR(motion.equilibrium_offset_px.x(), 8.0, 1e-9);  // mean of 0, 2, ..., 16
+}
+
+TEST(EstimateObservedMotion, UnknownWithoutClampsWithObstaclesOrWithoutAnObjectInFrameZero) {
+  const std::vector<BitMask> masks = MovingBlock(9, [](int f) { return 100.0 + 2.0 * f; });
+  Recording free_object = HangingRecording();
+  free_object.clamps.clear();
+  EXPECT_FALSE(EstimateObservedMotion(free_object, masks).known);
+
+  Recording pushed = HangingRecording();
+  pushed.obstacles.push_back({"finger", std::vector<Disc>(masks.size())});
+  EXPECT_FALSE(EstimateObservedMotion(pushed, masks).known);
+
+  std::vector<BitMask> late = masks;
+  late[0] = BitMask(400, 200);
+  EXPECT_FALSE(EstimateObservedMotion(HangingRecording(), late).known);
 }
 
 }  // namespace

@@ -71,6 +71,15 @@ class Model {
   /// Elastic energy at positions `x`.
   double Energy(const ModelParameters& params, std::span<const Vec2> x) const;
 
+  /// The springs' rest quantities (edge lengths, triangle areas, corner
+  /// angles) from the positions `rest` (#N) instead of the mesh's rest shape:
+  /// the model is then at rest at `rest`. Returns -1, or the first triangle
+  /// that is not positive at `rest` (the model is then left unchanged).
+  int SetRestShape(std::span<const Vec2> rest);
+
+  /// Back to the mesh's rest quantities (as constructed).
+  void ResetRestShape();
+
   /// Whether this CPU runs `kernel` (kAuto and kBaseline: always).
   static bool IsAvailable(ForceKernel kernel);
 

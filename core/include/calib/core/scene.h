@@ -23,6 +23,21 @@ struct Scene {
   /// Nodes inside these rectangles in frame 0 are held fixed.
   std::vector<RectPx> clamps;
 
+  /// The object's own motion as the video shows it, for a model with
+  /// inertia: a clamped object that swings freely is already out of its
+  /// equilibrium, and moving, in frame 0. Estimated by the evaluator from
+  /// the segmentation of a recording with clamps and no obstacles
+  /// (EstimateObservedMotion); unknown otherwise.
+  struct ObservedMotion {
+    bool known = false;
+    /// Time-mean object centroid minus its frame-0 centroid: where the
+    /// object swings about, relative to where it starts.
+    Vec2 equilibrium_offset_px = Vec2::Zero();
+    /// Velocity of the object's centroid in frame 0.
+    Vec2 initial_velocity_px_s = Vec2::Zero();
+  };
+  ObservedMotion motion;
+
   const Disc* ObstaclesAt(int frame) const {
     return obstacle_discs.data() + static_cast<size_t>(frame) * num_obstacles;
   }

@@ -10,6 +10,7 @@
 // the substep is the base model's, bit for bit.
 
 #include "calib/core/effects.h"
+#include "calib/core/initial_motion.h"
 #include "calib/core/integrator.h"
 #include "calib/core/model.h"
 #include "calib/core/model_definition.h"
@@ -17,6 +18,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 
 namespace calib {
@@ -50,7 +52,7 @@ class Simulator {
   Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options,
             const ModelDefinition& model);
 
-  /// Back to frame 0 (the rest shape, at rest) with new parameters. Only for
+  /// Back to frame 0 (the mesh's rest shape, at rest) with new parameters. Only for
   /// a simulator without effects (else std::logic_error: use the overload
   /// below, which also gives the effects their parameters).
   void Reset(const ModelParameters& params);
@@ -59,6 +61,10 @@ class Simulator {
   /// (the base model's and every effect's), each finite and within its
   /// bounds; else ParameterError naming the parameter ("parameters: ...").
   /// Configures every effect and resets its state (allocates nothing).
+  /// With inertia, a clamped object whose scene knows its observed motion
+  /// (Scene::motion) starts from it (initial_motion.h): the springs rest at
+  /// the estimated equilibrium and the nodes move with the observed
+  /// velocity; a failure to estimate them fails the simulation (status()).
   void Reset(const ParameterValues& values);
 
   /// Simulates from the current frame to the next. Returns false when the
@@ -95,6 +101,14 @@ class Simulator {
   /// 1 for nodes held by a clamp.
   const std::vector<uint8_t>& clamped() const { return clamped_; }
   const Model& model() const { return model_; }
+  /// Where the springs rest: the mesh's rest shape (frame 0), or the
+  /// equilibrium estimated from the observed motion (see Reset).
+  std::span<const Vec2> rest_shape() const {
+    return rest_shifted_ ? std::span<const Vec2>(initial_motion_.rest_shape())
+                         : std::span<const Vec2>(mesh_.rest_positions);
+  }
+  /// Node velocities at frame 0 (zero unless started from observed motion).
+  std::span<const Vec2> initial_velocities() const { return initial_motion_.velocities(); }
 
   const ModelDefinition& definition() const { return definition_; }
   /// The parameters Reset(ParameterValues) takes: ModelParameterSpecs(definition()).
@@ -107,6 +121,7 @@ class Simulator {
 
  private:
   void ResetState();
+  void StartFromObservedMotion();
   void StepDampedSecondOrder(double h, double damping_per_s, double mass);
   void InterpolateObstacles(double alpha);
   bool ApplyConstraints();
@@ -140,6 +155,8 @@ class Simulator {
   const EffectTerm* dynamics_effect_ = nullptr;
   bool second_order_ = false;
   double second_order_damping_per_s_ = 0.0;
+  InitialMotion initial_motion_;
+  bool rest_shifted_ = false;  // model_ rests at initial_motion_.rest_shape()
 
   int frame_ = 0;
   SimulationStatus status_ = SimulationStatus::kRunning;

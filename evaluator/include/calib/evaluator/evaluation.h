@@ -16,6 +16,7 @@
 #include "calib/evaluator/segmentation.h"
 
 #include <filesystem>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -46,8 +47,18 @@ struct PreparedRecording {
 /// The scene (obstacles, push, clamps, frame time) of a recording.
 Scene BuildScene(const Recording& recording);
 
+/// The object's observed motion (Scene::ObservedMotion) from its masks, one
+/// per frame: known for a recording with clamps and no obstacles (an object
+/// that hangs and swings freely), unknown otherwise. The equilibrium offset
+/// is the mean over the frames of the object's centroid minus frame 0's; the
+/// initial velocity is the slope at frame 0 of a least-squares quadratic
+/// through the centroids of the first five frames (a line through two).
+/// Frames without object pixels are skipped.
+Scene::ObservedMotion EstimateObservedMotion(const Recording& recording,
+                                             std::span<const BitMask> masks);
+
 /// Segments (or reads the cached segmentation of) every frame, meshes the
-/// frame-0 object and builds the scene. Throws RecordingError for an
+/// frame-0 object and builds the scene (with the observed motion). Throws RecordingError for an
 /// unreadable video, std::invalid_argument when no object can be meshed.
 PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options);
 

@@ -1,0 +1,93 @@
+#pragma once
+// The start of a simulation with inertia from the motion the video shows.
+//
+// A clamped object filmed while it swings is, in frame 0, neither at rest
+// nor in its equilibrium: the mesh (the frame-0 shape) is deflected and
+// moving. With the base model's rest shape at frame 0 and zero velocity, a
+// second-order model would sit still. InitialMotion estimates both from
+// Scene::ObservedMotion (the object's time-mean centroid offset and its
+// frame-0 centroid velocity), along the object's own static responses: u_x,
+// u_y solve K u = f for a uniform unit force f per movable node along x and
+// y (K the stiffness at the frame-0 shape, clamped nodes fixed), so
+//
+//   rest shape R = X0 + a u_x + b u_y,  initial velocity v0 = p u_x + q u_y,
+//
+// with (a, b) and (p, q) chosen so that the area-weighted mean of the
+// displacement / velocity equals the observed centroid offset / velocity.
+// That is the shape a cantilever takes under a uniform load: to first order
+// frame 0 is then the object held out of its equilibrium by such a load and
+// released. Directions in which the mean response is stiff (compliance
+// below kMinRelativeCompliance of the softest, e.g. stretching a hanging
+// strip along its length) are left out: a centroid offset there is a swing's
+// second-order arc, not an elastic deflection.
+//
+// Linear: large deflections stretch R (the linear response of a rotation);
+// where a triangle turns over in R, the largest share of the deflection that
+// keeps every triangle is used (LimitDeflection).
+
+#include "calib/core/mesh.h"
+#include "calib/core/model.h"
+#include "calib/core/parameters.h"
+#include "calib/core/scene.h"
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace calib {
+
+class InitialMotion {
+ public:
+  /// Mean compliances below this fraction of the largest are not used.
+  static constexpr double kMinRelativeCompliance = 0.05;
+
+  /// Sizes every buffer for `mesh` (which must outlive this); `clamped`
+  /// (#N) marks the nodes the clamps hold.
+  InitialMotion(const Mesh& mesh, std::span<const uint8_t> clamped);
+
+  /// Whether the clamps hold the mesh against rigid motion (at least two
+  /// distinct clamped nodes), so that K is invertible on the other nodes.
+  bool applicable() const { return applicable_; }
+
+  /// Computes rest_shape() and velocities() for `model` (whose rest must be
+  /// the mesh's) with the stiffnesses of `params`. Allocates nothing.
+  /// Returns false with *error set when a static response cannot be found
+  /// (the conjugate gradients stall: a stiffness too low to hold the mesh).
+  bool Compute(const Model& model, const ModelParameters& params,
+               const Scene::ObservedMotion& motion, ForceWorkspace& workspace, std::string* error);
+
+  /// After Compute: scales the deflection rest_shape() - frame 0 (and the
+  /// velocities alike) down by halves until model.SetRestShape(rest_shape())
+  /// accepts it, and leaves `model` resting there (at frame 0 when no share
+  /// of it does). Returns the share kept, in [0, 1].
+  double LimitDeflection(Model& model);
+
+  const std::vector<Vec2>& rest_shape() const { return rest_; }
+  const std::vector<Vec2>& velocities() const { return velocity_; }
+
+ private:
+  // Solves K u = f (f: `direction` on every movable node) by conjugate
+  // gradients, K applied as central differences of the model's forces.
+  bool SolveResponse(const Model& model, const ModelParameters& params, const Vec2& direction,
+                     ForceWorkspace& workspace, std::vector<Vec2>& u);
+  void ApplyStiffness(const Model& model, const ModelParameters& params,
+                      std::span<const Vec2> direction, ForceWorkspace& workspace,
+                      std::span<Vec2> out);
+  Vec2 AreaMean(std::span<const Vec2> field) const;
+
+  const Mesh& mesh_;
+  std::vector<double> movable_;     // 1 for free nodes, 0 for clamped ones
+  std::vector<double> node_area_;   // lumped area per node (a third of each triangle)
+  double total_area_ = 0.0;
+  double probe_px_ = 0.0;           // finite-difference step of K v
+  bool applicable_ = false;
+
+  std::vector<Vec2> response_x_, response_y_;
+  std::vector<Vec2> rest_, velocity_;
+  // Conjugate-gradient and probe buffers.
+  std::vector<Vec2> residual_, direction_, k_direction_, probe_, force_plus_, force_minus_,
+      zero_velocity_;
+};
+
+}  // namespace calib
