@@ -60,7 +60,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       options_(options),
       model_(mesh),
       force_workspace_(model_.MakeWorkspace()),
-      clamped_(mesh.NumNodes(), 0),
+      clamped_(MarkClamped(mesh, scene)),
       inverse_weight_(mesh.NumNodes(), 1.0),
       x_(mesh.rest_positions),
       x_prev_(mesh.rest_positions),
@@ -69,8 +69,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       discs_(scene.num_obstacles),
       definition_(model),
       parameter_specs_(ModelParameterSpecs(model)),
-      initial_motion_(mesh, MarkClamped(mesh, scene)) {
-  clamped_ = MarkClamped(mesh, scene);
+      initial_motion_(mesh, clamped_) {
   Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (int i = 0; i < mesh.NumNodes(); ++i) {
     const Vec2& p = mesh.rest_positions[i];
