@@ -1,6 +1,7 @@
 #include "calib/core/constraints.h"
 
 #include <cmath>
+#include <vector>
 
 // Each constraint is a scalar loop in index order whose step can move nodes
 // that later elements read, so it must stay sequential. Most elements need no
@@ -140,6 +141,70 @@ int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inver
       x[i] = dist > 0.0 ? Vec2(disc.centre + d * (disc.radius_px / dist))
                         : Vec2(disc.centre + Vec2(disc.radius_px, 0.0));
       ++moved;
+    }
+  }
+  return moved;
+}
+
+namespace {
+
+// Whether p lies inside the outline (crossing parity over every boundary
+// loop, so a point in a hole is outside).
+bool InsideOutline(const Mesh& mesh, std::span<const Vec2> x, const Vec2& p) {
+  bool inside = false;
+  for (const std::vector<int>& loop : mesh.boundary_loops) {
+    for (size_t k = 0, m = loop.size(); k < m; ++k) {
+      const Vec2& a = x[loop[k]];
+      const Vec2& b = x[loop[(k + 1) % m]];
+      if ((a.y() > p.y()) != (b.y() > p.y()) &&
+          p.x() < a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y())) {
+        inside = !inside;
+      }
+    }
+  }
+  return inside;
+}
+
+}  // namespace
+
+int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
+                              std::span<const double> inverse_weight, std::span<Vec2> x) {
+  int moved = 0;
+  for (const Disc& disc : discs) {
+    const double r = disc.radius_px;
+    // Edges are moved only when they lie inside by more than a hundredth of
+    // a pixel (invisible to the rasteriser), then onto the circle itself:
+    // the tilt that leaves an edge slightly inside after its step is
+    // second order, so the simulator's rounds stop after one or two instead
+    // of chasing it to rounding error.
+    const double inner = r - kEdgeContactTolerancePx;
+    // A centre that got inside the outline (the disc went through an edge
+    // between two substeps, or a tilting edge swept over it) is pushed back
+    // out through the edges it overlaps; otherwise an edge with the centre
+    // on its inner side is a convex corner's other edge, not in contact.
+    const bool centre_inside = InsideOutline(mesh, x, disc.centre);
+    for (const std::vector<int>& loop : mesh.boundary_loops) {
+      const size_t m = loop.size();
+      for (size_t k = 0; k < m; ++k) {
+        const int a = loop[k], b = loop[(k + 1) % m];
+        const Vec2 e = x[b] - x[a];
+        const double len_sq = e.squaredNorm();
+        if (!(len_sq > 0.0)) continue;
+        const double t = (disc.centre - x[a]).dot(e) / len_sq;
+        if (!(t > 0.0 && t < 1.0)) continue;  // nearest an end node: ProjectOutOfDiscs' case
+        // The interior lies to the left of a -> b (positive triangles);
+        // s > 0: the centre is in front of the edge, outside.
+        const Vec2 n = Vec2(-e.y(), e.x()) / std::sqrt(len_sq);
+        const double s = n.dot(x[a] - disc.centre);
+        if (!(s < inner) || !(s > (centre_inside ? -r : 0.0))) continue;
+        const double wa = inverse_weight[a] * (1.0 - t), wb = inverse_weight[b] * t;
+        const double denom = wa * (1.0 - t) + wb * t;
+        if (!(denom > 0.0)) continue;  // both ends clamped
+        const double lambda = (r - s) / denom;
+        x[a] += (lambda * wa) * n;
+        x[b] += (lambda * wb) * n;
+        ++moved;
+      }
     }
   }
   return moved;

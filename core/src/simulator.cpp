@@ -273,7 +273,13 @@ bool Simulator::ApplyConstraints() {
   // Clamped nodes have inverse weight 0: the integrator and the projections
   // never move them, so they stay at their rest positions.
   for (int iter = 0; iter < options_.constraint_iterations; ++iter) {
-    const int moved = ProjectOutOfDiscs(discs_, inverse_weight_, x_);
+    // Edges first, nodes last: a node is never left inside a disc by the
+    // edge step (the check below holds nodes to it; an edge that the rounds
+    // leave a little inside is tolerated).
+    const int edges_moved = options_.outline_contact
+                                ? ProjectBoundaryOutOfDiscs(mesh_, discs_, inverse_weight_, x_)
+                                : 0;
+    const int moved = edges_moved + ProjectOutOfDiscs(discs_, inverse_weight_, x_);
     const int repaired =
         RepairInvertedTriangles(mesh_, options_.min_area_fraction, inverse_weight_, x_);
     // A round that moved nothing found every constraint met.

@@ -166,6 +166,7 @@ nlohmann::json ToJson(const JobSpec& spec) {
       {"substeps", m.simulation.substeps},
       {"integrator", ToString(m.simulation.integrator)},
       {"constraint_iterations", m.simulation.constraint_iterations},
+      {"outline_contact", m.simulation.outline_contact},
       {"min_area_fraction", m.simulation.min_area_fraction},
       {"divergence_diameters", m.simulation.divergence_diameters},
       {"segmentation",

@@ -102,6 +102,7 @@ void ReadModel(MapReader r, ModelSpec* m, const ModelCatalog& catalog) {
   if (sim.constraint_iterations < 1) {
     r.Fail(r.KeyPath("constraint_iterations"), r.node()["constraint_iterations"], "must be >= 1");
   }
+  r.Read("outline_contact", &sim.outline_contact);
   r.Read("min_area_fraction", &sim.min_area_fraction);
   if (!(sim.min_area_fraction > 0.0 && sim.min_area_fraction < 1.0)) {
     r.Fail(r.KeyPath("min_area_fraction"), r.node()["min_area_fraction"], "must be in (0, 1)");

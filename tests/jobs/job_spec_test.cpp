@@ -27,6 +27,7 @@ model:
   substeps: 12
   integrator: verlet
   constraint_iterations: 6
+  outline_contact: true
   segmentation: {open_radius_px: 2, close_radius_px: 3, fill_holes: false}
   mesh: {edge_length_px: 18.5}
 parameters:
@@ -88,6 +89,7 @@ TEST(JobSpec, ValidSpecIsReadCompletely) {
   EXPECT_EQ(spec.model.simulation.substeps, 12);
   EXPECT_EQ(spec.model.simulation.integrator, IntegratorKind::kVerlet);
   EXPECT_EQ(spec.model.simulation.constraint_iterations, 6);
+  EXPECT_TRUE(spec.model.simulation.outline_contact);
   EXPECT_EQ(spec.model.preparation.segmentation.open_radius_px, 2);
   EXPECT_FALSE(spec.model.preparation.segmentation.fill_holes);
   EXPECT_EQ(spec.model.preparation.mesher.edge_length_px, 18.5);
@@ -144,6 +146,7 @@ budget: {evaluations: 30}
                                     "min.yaml", dir);
   EXPECT_TRUE(spec.holdout.empty());
   EXPECT_EQ(spec.model.simulation.substeps, 10);
+  EXPECT_FALSE(spec.model.simulation.outline_contact);
   EXPECT_EQ(spec.seed, 1u);
   EXPECT_EQ(spec.threads, 0);
   EXPECT_EQ(spec.optimizer.settings["maxeval"], 30);
@@ -296,6 +299,8 @@ TEST(JobSpec, OtherRulesAreNamed) {
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["seed"] = -1; }), "seed = '-1'");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["substeps"] = 0; }),
                   "model.substeps = '0': must be >= 1");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["outline_contact"] = "sometimes"; }),
+                  "model.outline_contact");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["integrator"] = "rk4"; }),
                   "model.integrator = 'rk4': must be first_order or verlet");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["effects"].push_back("magnetism"); }),

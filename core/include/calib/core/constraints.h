@@ -16,6 +16,28 @@ namespace calib {
 int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inverse_weight,
                       std::span<Vec2> x);
 
+/// Edges inside a disc by less than this are left alone by
+/// ProjectBoundaryOutOfDiscs: invisible to the rasteriser.
+inline constexpr double kEdgeContactTolerancePx = 0.01;
+
+/// Keeps the discs out of the mesh's boundary edges, not only its nodes: a
+/// disc narrower than the mesh's edges would otherwise slip between two
+/// boundary nodes and poke through the outline. For every boundary edge
+/// whose interior point nearest a disc's centre lies inside the disc (the
+/// centre in front of the edge, outside the object), moves the edge's two
+/// nodes along its inward normal so that point lands on the circle, shared by
+/// their inverse weights and barycentric weights (the position-based
+/// edge-point contact). Only edges inside by more than
+/// kEdgeContactTolerancePx are moved. An edge moved more at one end tilts,
+/// so its nearest point may still lie a little inside: repeated rounds, as
+/// the simulator runs them, converge. A centre that got inside the outline
+/// (a disc that went through an edge, or an edge that swept over it) is put
+/// back out: then the edges it overlaps from behind are moved past it too.
+/// An edge whose nearest point is an end node is left to ProjectOutOfDiscs.
+/// Returns the number of edges moved.
+int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
+                              std::span<const double> inverse_weight, std::span<Vec2> x);
+
 /// For every triangle whose signed area is below min_area_fraction * A0
 /// (inverted or nearly so), pushes the node and the opposite edge apart: a
 /// step towards A = 2 min_area_fraction A0 along the area gradient, shared

@@ -28,6 +28,11 @@ struct SimulationOptions {
   IntegratorKind integrator = IntegratorKind::kFirstOrder;
   /// Rounds of (obstacles, inversion repair, clamps) after each substep.
   int constraint_iterations = 8;
+  /// Obstacles keep out of the outline's edges too, not only its nodes
+  /// (ProjectBoundaryOutOfDiscs): a disc narrower than the mesh's edges then
+  /// presses a dent as wide as its contact instead of slipping between two
+  /// boundary nodes. Off: the paper's node-only contact.
+  bool outline_contact = false;
   /// Triangles are kept above this fraction of their rest area.
   double min_area_fraction = 0.05;
   /// A node farther than this many mesh diameters from the rest centroid

@@ -1,0 +1,182 @@
+// Obstacle discs against the mesh's boundary edges (ProjectBoundaryOutOfDiscs):
+// a disc narrower than the mesh's edges may not slip between two boundary
+// nodes and poke through the outline.
+
+#include "calib/core/constraints.h"
+#include "calib/core/simulator.h"
+
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace calib {
+namespace {
+
+using calib::testing::MakeGridMesh;
+
+double SegmentDistance(const Vec2& a, const Vec2& b, const Vec2& p) {
+  const Vec2 e = b - a;
+  const double t = std::clamp((p - a).dot(e) / e.squaredNorm(), 0.0, 1.0);
+  return (a + t * e - p).norm();
+}
+
+// The smallest distance from a disc's centre to a boundary edge, minus its radius
+// (negative: the disc pokes through the outline).
+double Clearance(const Mesh& mesh, const Disc& disc, const std::vector<Vec2>& x) {
+  double clearance = std::numeric_limits<double>::infinity();
+  for (const std::vector<int>& loop : mesh.boundary_loops) {
+    for (size_t k = 0; k < loop.size(); ++k) {
+      const int a = loop[k], b = loop[(k + 1) % loop.size()];
+      clearance = std::min(clearance, SegmentDistance(x[a], x[b], disc.centre) - disc.radius_px);
+    }
+  }
+  return clearance;
+}
+
+// One 20 px square (nodes (0,0), (20,0), (0,20), (20,20)); the edge y = 0 is on
+// its outline, the object below it (larger y).
+Mesh Square() { return MakeGridMesh(2, 2, 20.0); }
+
+int NodeAt(const Mesh& mesh, double x, double y) {
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    if ((mesh.rest_positions[i] - Vec2(x, y)).norm() < 1e-12) return i;
+  }
+  return -1;
+}
+
+TEST(DiscContact, PushesAnEdgeOffADiscBetweenItsNodes) {
+  const Mesh mesh = Square();
+  const std::vector<Disc> discs = {{Vec2(5.0, -2.0), 3.0}};  // 1 px into the edge y = 0
+  std::vector<Vec2> x = mesh.rest_positions;
+  const std::vector<double> w(mesh.NumNodes(), 1.0);
+  // No node is inside the disc: the node projection alone leaves it poking through.
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, x), 0);
+  EXPECT_LT(Clearance(mesh, discs[0], x), -0.99);
+
+  EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x), 1);
+  // The contact point lies at a quarter of the edge: the nearer node takes
+  // three times the move of the farther one, both along the normal (+y),
+  // and the point at that quarter lands on the circle.
+  const int a = NodeAt(mesh, 0, 0), b = NodeAt(mesh, 20, 0);
+  ASSERT_GE(a, 0);
+  ASSERT_GE(b, 0);
+  EXPECT_NEAR(x[a].x(), 0.0, 1e-12);
+  EXPECT_NEAR(x[b].x(), 20.0, 1e-12);
+  EXPECT_NEAR(x[a].y(), 3.0 * x[b].y(), 1e-12);
+  EXPECT_NEAR((0.75 * x[a] + 0.25 * x[b] - discs[0].centre).norm(), 3.0, 1e-12);
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    if (i != a && i != b) {
+      EXPECT_EQ(x[i], mesh.rest_positions[i]) << "node " << i;
+    }
+  }
+  // The edge tilted, so its nearest point is a little inside still; a few
+  // more rounds bring the outline within the tolerance of the circle and
+  // then move nothing.
+  EXPECT_LT(Clearance(mesh, discs[0], x), 0.0);
+  int rounds = 0;
+  while (ProjectBoundaryOutOfDiscs(mesh, discs, w, x) > 0 && rounds < 50) ++rounds;
+  EXPECT_LT(rounds, 3);
+  EXPECT_GT(Clearance(mesh, discs[0], x), -kEdgeContactTolerancePx);
+  EXPECT_LT(Clearance(mesh, discs[0], x), 0.0);
+}
+
+TEST(DiscContact, AClampedEndStaysAndTheOtherTakesTheWholeMove) {
+  const Mesh mesh = Square();
+  const std::vector<Disc> discs = {{Vec2(10.0, -2.0), 3.0}};
+  std::vector<Vec2> x = mesh.rest_positions;
+  std::vector<double> w(mesh.NumNodes(), 1.0);
+  const int a = NodeAt(mesh, 0, 0), b = NodeAt(mesh, 20, 0);
+  w[a] = 0.0;
+  EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x), 1);
+  EXPECT_NEAR(x[b].y(), 2.0, 1e-12);  // the midpoint moves 1 px: the free end 2 px
+  for (int round = 0; round < 50; ++round) ProjectBoundaryOutOfDiscs(mesh, discs, w, x);
+  EXPECT_EQ(x[a], mesh.rest_positions[a]);
+  EXPECT_GT(Clearance(mesh, discs[0], x), -kEdgeContactTolerancePx);
+  // Both ends clamped: nothing can move.
+  w[b] = 0.0;
+  x = mesh.rest_positions;
+  EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x), 0);
+  EXPECT_EQ(x, mesh.rest_positions);
+}
+
+TEST(DiscContact, PutsADiscWhoseCentreGotInsideBackOut) {
+  const Mesh mesh = Square();
+  const std::vector<double> w(mesh.NumNodes(), 1.0);
+  const std::vector<Disc> discs = {{Vec2(10.0, 1.0), 3.0}};  // 1 px past the edge y = 0
+  std::vector<Vec2> x = mesh.rest_positions;
+  EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x), 1);
+  // The edge went past the centre, to the circle's far side: the disc is
+  // outside the object again, touching it.
+  const int a = NodeAt(mesh, 0, 0), b = NodeAt(mesh, 20, 0);
+  EXPECT_NEAR(x[a].y(), 4.0, 1e-12);
+  EXPECT_NEAR(x[b].y(), 4.0, 1e-12);
+  EXPECT_NEAR(Clearance(mesh, discs[0], x), 0.0, 1e-12);
+  EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x), 0);
+}
+
+TEST(DiscContact, LeavesDiscsClearOfEdgesOrNearestAnEndToTheNodes) {
+  const Mesh mesh = Square();
+  const std::vector<double> w(mesh.NumNodes(), 1.0);
+  for (const Disc& disc : {Disc{Vec2(10.0, 10.0), 3.0},     // inside, touching no edge
+                           Disc{Vec2(-1.0, -1.0), 3.0},     // nearest a corner node
+                           Disc{Vec2(10.0, -3.0), 3.0},     // touching, not inside
+                           Disc{Vec2(10.0, -2.995), 3.0}}) {  // inside within the tolerance
+    std::vector<Vec2> x = mesh.rest_positions;
+    EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, {&disc, 1}, w, x), 0)
+        << disc.centre.transpose() << " r " << disc.radius_px;
+    EXPECT_EQ(x, mesh.rest_positions);
+  }
+}
+
+// A finger narrower than the mesh's edges pushed 12 px into the middle of a
+// side between two nodes: with outline contact the simulator keeps it out of
+// the outline at every substep and it moves the patch; with the paper's
+// node-only contact it pokes through.
+double WorstClearance(bool outline_contact);
+
+TEST(DiscContact, ANarrowFingerNeverPokesThroughTheOutline) {
+  EXPECT_GT(WorstClearance(true), -kEdgeContactTolerancePx);
+  EXPECT_LT(WorstClearance(false), -3.0);  // most of its 4 px radius
+}
+
+double WorstClearance(bool outline_contact) {
+  const Mesh mesh = MakeGridMesh(6, 4, 20.0, Vec2(100, 100));  // sides 100 x 60
+  Scene scene;
+  scene.frame_time_s = 1.0 / 30.0;
+  scene.num_frames = 30;
+  scene.num_obstacles = 1;
+  scene.force_obstacle = 0;
+  for (int f = 0; f < scene.num_frames; ++f) {
+    // Radius 4 < half the 20 px spacing; enters the top side at x = 150, midway
+    // between the nodes at 140 and 160, 12 px deep by the last frame.
+    const double depth = 12.0 * f / (scene.num_frames - 1);
+    scene.obstacle_discs.push_back({Vec2(150.0, 100.0 - 4.0 + depth), 4.0});
+    scene.forces.push_back(Vec2::Zero());
+  }
+  SimulationOptions options;
+  options.outline_contact = outline_contact;
+  Simulator sim(mesh, scene, options);
+  sim.Reset(calib::testing::StiffTestParameters());
+  double worst = std::numeric_limits<double>::infinity();
+  const auto check = [&](int) {
+    const std::vector<Vec2> x(sim.positions().begin(), sim.positions().end());
+    worst = std::min(worst, Clearance(mesh, sim.obstacles()[0], x));
+  };
+  while (sim.Advance(check)) {
+  }
+  EXPECT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
+  if (outline_contact) {
+    // The top side's two nodes next to the finger went down with it.
+    const std::vector<Vec2> x(sim.positions().begin(), sim.positions().end());
+    EXPECT_GT(x[NodeAt(mesh, 140, 100)].y() + x[NodeAt(mesh, 160, 100)].y() - 200.0, 10.0);
+  }
+  return worst;
+}
+
+}  // namespace
+}  // namespace calib
