@@ -166,7 +166,6 @@ nlohmann::json ToJson(const JobSpec& spec) {
       {"substeps", m.simulation.substeps},
       {"integrator", ToString(m.simulation.integrator)},
       {"constraint_iterations", m.simulation.constraint_iterations},
-      {"outline_contact", m.simulation.outline_contact},
       {"min_area_fraction", m.simulation.min_area_fraction},
       {"divergence_diameters", m.simulation.divergence_diameters},
       {"segmentation",
@@ -176,6 +175,9 @@ nlohmann::json ToJson(const JobSpec& spec) {
       {"mesh", {{"edge_length_px", m.preparation.mesher.edge_length_px}}},
       {"outline_tolerance_px", m.preparation.outline_tolerance_px},
   };
+  // Written only when on: a job stored before the key existed (off) keeps
+  // the same spec and resumes.
+  if (m.simulation.outline_contact) out["model"]["outline_contact"] = true;
   out["parameters"] = json::array();
   for (const auto& p : spec.parameters) {
     if (p.searched()) {

@@ -147,6 +147,9 @@ budget: {evaluations: 30}
   EXPECT_TRUE(spec.holdout.empty());
   EXPECT_EQ(spec.model.simulation.substeps, 10);
   EXPECT_FALSE(spec.model.simulation.outline_contact);
+  // Off is the default and left out of the canonical JSON, so that jobs
+  // stored before the key existed resume with the same spec.
+  EXPECT_FALSE(ToJson(spec)["model"].contains("outline_contact"));
   EXPECT_EQ(spec.seed, 1u);
   EXPECT_EQ(spec.threads, 0);
   EXPECT_EQ(spec.optimizer.settings["maxeval"], 30);
