@@ -27,6 +27,7 @@ struct LoopCli {
   int overlays = 2;
   std::string cache_dir;
   bool no_cache = false;
+  bool outline_contact = false;
   bool no_html = false;
   bool quiet = false;
 };
@@ -75,6 +76,9 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
                   "overlay frames per recording at the worst moments (base and final model)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_flag("--outline-contact", cli->outline_contact,
+                "obstacles keep out of the outline's edges, not only its nodes (job spec "
+                "model.outline_contact)");
   cmd->add_option("--cache-dir", cli->cache_dir, "segmentation cache folder");
   cmd->add_flag("--no-cache", cli->no_cache, "do not read or write the segmentation cache");
   cmd->add_flag("--no-html", cli->no_html, "write report.json only");
@@ -98,6 +102,7 @@ std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) 
   options.min_confidence = cli.min_confidence;
   options.overlays_per_recording = cli.overlays;
   options.write_html = !cli.no_html;
+  options.simulation.outline_contact = cli.outline_contact;
   if (cli.no_cache) {
     options.preparation.cache_dir.clear();
   } else if (!cli.cache_dir.empty()) {

@@ -674,6 +674,12 @@ LoopResult Loop::Run() {
                 "confidence >= {:.2f}; the loop stops when none passes or {} effects are kept.",
                 o_.noise_factor, 100.0 * o_.min_relative_gain, o_.tries_per_round,
                 o_.min_confidence, o_.max_effects);
+  const SimulationOptions& sim = o_.simulation;
+  report_.notes.push_back(fmt::format(
+      "simulation: {} integrator, {} substeps per frame, {}", ToString(sim.integrator),
+      sim.substeps,
+      sim.outline_contact ? "outline contact (obstacles keep out of the outline's edges and nodes)"
+                          : "node contact (obstacles keep out of the nodes, the paper's)"));
   for (const LoopRecording& r : recs_) {
     report_.notes.push_back(fmt::format("{}: segmentation noise {:.0f} px per frame ({} frames)",
                                         r.name, r.noise_px, r.prepared->scene.num_frames));

@@ -1,10 +1,12 @@
 // The loop as a whole: on recordings with no effect beyond the base model it
 // adds nothing; the same seed gives the same report numbers at 1 and 2
-// threads; the report files; bad options are named.
+// threads; the report files; the contact model reaches the stored jobs; bad
+// options are named.
 
 #include "loop_test_support.h"
 
 #include "calib/results/loop_report.h"
+#include "calib/results/store.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -37,7 +39,9 @@ TEST(Loop, AddsNothingWhereNoEffectIsPresent) {
   ASSERT_NE(final_stage, nullptr);
   EXPECT_EQ(final_stage->name, "base");
   for (const ReportStage& s : result.report.stages) {
-    if (s.decision != StageDecision::kBase) EXPECT_EQ(s.decision, StageDecision::kRejected) << s.name;
+    if (s.decision != StageDecision::kBase) {
+      EXPECT_EQ(s.decision, StageDecision::kRejected) << s.name;
+    }
   }
   // The report: json that reads back, html with plots, the table printed.
   const LoopReport back = ReadLoopReportJson(result.report_json);
@@ -83,6 +87,26 @@ TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
   const LoopResult other = RunLoop(options);
   EXPECT_NE(Numbers(one.report)["stages"][0]["parameters"],
             Numbers(other.report)["stages"][0]["parameters"]);
+}
+
+// The contact model chosen for the loop reaches every calibration it
+// stores and is stated in the report.
+TEST(Loop, OutlineContactReachesTheStoredJobsAndTheReport) {
+  LoopOptions options = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {},
+                                                 "loop_outline_contact");
+  options.budget = 4;
+  options.max_effects = 0;
+  options.simulation.outline_contact = true;
+  const LoopResult result = RunLoop(options);
+  bool stated = false;
+  for (const std::string& note : result.report.notes) {
+    stated |= note.find("outline contact") != std::string::npos;
+  }
+  EXPECT_TRUE(stated);
+  const ResultStore store(result.store);
+  const std::vector<JobInfo> jobs = store.Jobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].spec.at("model").value("outline_contact", false), true) << jobs[0].spec.dump();
 }
 
 TEST(Loop, BadOptionsAreNamed) {
