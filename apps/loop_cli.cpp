@@ -25,6 +25,7 @@ struct LoopCli {
   int tries = 3;
   double min_confidence = 0.05;
   int overlays = 2;
+  int equally_good_fits = 16;
   std::string cache_dir;
   bool no_cache = false;
   bool outline_contact = false;
@@ -72,6 +73,12 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
                   "hypotheses below this confidence are not tried")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  cmd->add_option("--equally-good-fits", cli->equally_good_fits,
+                  "fits of a model as good as its best on the training recordings (within "
+                  "max(segmentation noise, 1%)) re-scored on the held-out recordings; an "
+                  "effect's drop must also pass between their medians (0: the best fits only)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_option("--overlays", cli->overlays,
                   "overlay frames per recording at the worst moments (base and final model)")
       ->check(CLI::NonNegativeNumber)
@@ -101,6 +108,7 @@ std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) 
   options.tries_per_round = cli.tries;
   options.min_confidence = cli.min_confidence;
   options.overlays_per_recording = cli.overlays;
+  options.equally_good_fits = cli.equally_good_fits;
   options.write_html = !cli.no_html;
   options.simulation.outline_contact = cli.outline_contact;
   if (cli.no_cache) {

@@ -56,6 +56,9 @@ bool LoopOptions::IsValid(std::string* error) const {
   if (!(min_relative_gain >= 0.0 && min_relative_gain < 1.0)) {
     return fail(fmt::format("loop: minimum relative gain = {}: must be in [0, 1)", min_relative_gain));
   }
+  if (equally_good_fits < 0) {
+    return fail(fmt::format("loop: --equally-good-fits = {}: must be >= 0", equally_good_fits));
+  }
   if (overlays_per_recording < 0) {
     return fail(fmt::format("loop: overlays per recording = {}: must be >= 0",
                             overlays_per_recording));
@@ -156,6 +159,34 @@ double NeutralValue(const ParameterSetting& s) {
   return s.lower;
 }
 
+std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationRecord>& evaluations,
+                                                   double tolerance, int limit) {
+  std::vector<const EvaluationRecord*> ok;
+  for (const EvaluationRecord& e : evaluations) {
+    if (e.ok && std::isfinite(e.score)) ok.push_back(&e);
+  }
+  if (ok.empty() || limit <= 0) return {};
+  std::stable_sort(ok.begin(), ok.end(),
+                   [](const EvaluationRecord* a, const EvaluationRecord* b) { return a->score < b->score; });
+  const double cutoff = ok.front()->score + std::max(tolerance, 0.0);
+  std::vector<const ParameterValues*> distinct;
+  for (const EvaluationRecord* e : ok) {
+    if (e->score > cutoff) break;
+    const bool seen = std::any_of(distinct.begin(), distinct.end(),
+                                  [&](const ParameterValues* p) { return *p == e->parameters; });
+    if (!seen) distinct.push_back(&e->parameters);
+  }
+  std::vector<ParameterValues> out;
+  const size_t n = distinct.size();
+  const size_t take = std::min(n, static_cast<size_t>(limit));
+  for (size_t i = 0; i < take; ++i) {
+    // Ranks 0, ..., n - 1 spread evenly: i (n - 1) / (take - 1), rounded down.
+    const size_t rank = take == 1 ? 0 : i * (n - 1) / (take - 1);
+    out.push_back(*distinct[rank]);
+  }
+  return out;
+}
+
 namespace {
 
 std::string RecordingName(const PreparedRecording& prepared) {
@@ -216,6 +247,8 @@ struct Fit {
   std::vector<ResidualAnalysis> residuals;   ///< per recording
   int evaluations = 0;
   double seconds = 0.0;
+  std::vector<int64_t> jobs;  ///< the store's jobs of its calibration
+  EquallyGoodFits equally_good;  ///< MeasureEquallyGood; fits == 0 until then
 
   int64_t XorSum(const std::vector<LoopRecording>& recs, bool train) const {
     int64_t s = 0;
@@ -228,6 +261,12 @@ struct Fit {
     return std::all_of(results.begin(), results.end(), [](const EvaluationResult& e) { return e.ok(); });
   }
 };
+
+std::string EquallyGoodLine(const EquallyGoodFits& g) {
+  if (g.fits == 0) return "";
+  return fmt::format("; {} equally good fits: held-out XOR {} to {}, median {}", g.fits,
+                     g.holdout_xor_min, g.holdout_xor_max, g.holdout_xor_median);
+}
 
 std::string StageName(const std::vector<std::string>& effects) {
   return ModelDefinition{effects}.ToString();
@@ -272,9 +311,10 @@ class Loop {
                                             const std::vector<std::string>& effects,
                                             const std::vector<ParameterSetting>& settings,
                                             const std::vector<double>* x0, double sigma,
-                                            int64_t budget, uint64_t seed, int* evaluations);
+                                            int64_t budget, uint64_t seed, Fit* fit);
   double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const;
   void Measure(Fit* fit) const;
+  void MeasureEquallyGood(Fit* fit) const;
   ReportStage MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const;
   void AddResiduals(const Fit& fit);
   void AddOverlays(const Fit& fit, const std::string& stage);
@@ -285,7 +325,8 @@ class Loop {
     std::string criterion;
     std::string reason;
   };
-  Verdict Judge(const Fit& current, const Fit& candidate, int extra_parameters) const;
+  Verdict Judge(const Fit& previous, const Fit* ablation, const Fit& candidate,
+                int extra_parameters) const;
   bool HasHoldout() const {
     return std::any_of(recs_.begin(), recs_.end(), [](const LoopRecording& r) { return !r.train; });
   }
@@ -350,7 +391,7 @@ std::pair<ParameterValues, double> Loop::RunJob(const std::string& name,
                                                 const std::vector<std::string>& effects,
                                                 const std::vector<ParameterSetting>& settings,
                                                 const std::vector<double>* x0, double sigma,
-                                                int64_t budget, uint64_t seed, int* evaluations) {
+                                                int64_t budget, uint64_t seed, Fit* fit) {
   const SearchSpace space(settings);
   json doc = json::object();
   doc["name"] = name;
@@ -410,7 +451,8 @@ std::pair<ParameterValues, double> Loop::RunJob(const std::string& name,
         "loop: calibrating {} found no candidate that simulates every training recording ({})",
         StageName(effects), run.stop_reason));
   }
-  *evaluations += static_cast<int>(run.evaluations);
+  fit->evaluations += static_cast<int>(run.evaluations);
+  fit->jobs.push_back(job);
   return {run.best->parameters, run.best->score};
 }
 
@@ -434,7 +476,7 @@ Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fi
   fit.effects = effects;
   if (warm == nullptr) {
     fit.values = RunJob(JobName(index, effects), effects, settings, nullptr, 0.3, budget, seed,
-                        &fit.evaluations).first;
+                        &fit).first;
   } else {
     // Warm start in two phases. (1) The new effect's parameters alone, over
     // their whole box, the previous model's held at their best: a small
@@ -466,12 +508,12 @@ Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fi
     std::vector<double> x1 = SearchSpace(effect_only).ToUnit(start_values);
     for (double& u : x1) u = std::clamp(u, 0.0, 1.0);
     const auto [values1, score1] = RunJob(JobName(index, effects) + "-effect", effects, effect_only,
-                                          &x1, 0.3, budget1, seed, &fit.evaluations);
+                                          &x1, 0.3, budget1, seed, &fit);
     std::vector<double> x2 = SearchSpace(settings).ToUnit(values1);
     for (double& u : x2) u = std::clamp(u, 0.0, 1.0);
     constexpr double kJointSigma = 0.25;
     const auto [values2, score2] = RunJob(JobName(index, effects), effects, settings, &x2,
-                                          kJointSigma, budget2, seed + 500, &fit.evaluations);
+                                          kJointSigma, budget2, seed + 500, &fit);
     const double score0 = TrainingScore(effects, start_values);
     ++fit.evaluations;
     fit.values = values2;
@@ -513,6 +555,72 @@ void Loop::Measure(Fit* fit) const {
   }
 }
 
+// Re-scores the fit's equally good parameter sets on the held-out
+// recordings (nothing without held-out recordings or with the option 0).
+void Loop::MeasureEquallyGood(Fit* fit) const {
+  if (!HasHoldout() || o_.equally_good_fits == 0) return;
+  std::vector<EvaluationRecord> evaluations;
+  for (int64_t job : fit->jobs) {
+    for (EvaluationRecord& e : store_->Evaluations(job)) evaluations.push_back(std::move(e));
+  }
+  // Equally good: worse than the best on the training recordings by no more
+  // than the margin an effect must beat to count as better there (the
+  // training segmentation noise, or the minimum relative gain).
+  const double tolerance = std::max(o_.noise_factor * NoiseBudget(true),
+                                    o_.min_relative_gain * static_cast<double>(fit->XorSum(recs_, true)));
+  std::vector<ParameterValues> sets = SelectEquallyGoodFits(evaluations, tolerance, o_.equally_good_fits);
+  // The fit itself is always one of them (a warm start's best may be its
+  // starting point, which no job recorded).
+  if (std::find(sets.begin(), sets.end(), fit->values) == sets.end()) sets.insert(sets.begin(), fit->values);
+
+  std::vector<int> held;
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    if (!recs_[r].train) held.push_back(static_cast<int>(r));
+  }
+  const int n = static_cast<int>(sets.size() * held.size());
+  std::vector<EvaluationResult> results(n);
+  const ModelDefinition model{fit->effects};
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, std::min(threads_, n)))
+  for (int i = 0; i < n; ++i) {
+    const LoopRecording& rec = recs_[held[i % held.size()]];
+    try {
+      Evaluator evaluator(*rec.prepared, o_.simulation, model);
+      results[i] = evaluator.Evaluate(sets[i / held.size()]);
+    } catch (const std::exception&) {
+      results[i].status = EvaluationStatus::kFailed;  // counted out below
+    }
+  }
+  EquallyGoodFits g;
+  g.training_tolerance_px = tolerance;
+  std::vector<int64_t> sums;
+  for (size_t k = 0; k < sets.size(); ++k) {
+    int64_t xor_sum = 0;
+    double iou = 0.0;
+    bool ok = true;
+    for (size_t h = 0; h < held.size(); ++h) {
+      const EvaluationResult& e = results[k * held.size() + h];
+      ok = ok && e.ok();
+      xor_sum += e.xor_sum;
+      iou += e.mean_iou;
+    }
+    if (!ok) continue;  // a fit that fails on held-out data pins nothing down
+    iou /= static_cast<double>(held.size());
+    if (g.fits == 0 || xor_sum < g.holdout_xor_min) {
+      g.holdout_xor_min = xor_sum;
+      g.holdout_iou_at_min = iou;
+    }
+    g.holdout_xor_max = g.fits == 0 ? xor_sum : std::max(g.holdout_xor_max, xor_sum);
+    sums.push_back(xor_sum);
+    ++g.fits;
+  }
+  if (!sums.empty()) {
+    auto middle = sums.begin() + static_cast<std::ptrdiff_t>((sums.size() - 1) / 2);
+    std::nth_element(sums.begin(), middle, sums.end());
+    g.holdout_xor_median = *middle;
+  }
+  fit->equally_good = g;
+}
+
 ReportStage Loop::MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const {
   ReportStage s;
   s.name = StageName(fit.effects);
@@ -525,6 +633,7 @@ ReportStage Loop::MakeStage(const Fit& fit, const std::string& tried, StageDecis
   }
   s.calibration_time_s = fit.seconds;
   s.evaluations = fit.evaluations;
+  s.equally_good = fit.equally_good;
   return s;
 }
 
@@ -556,7 +665,11 @@ void Loop::AddOverlays(const Fit& fit, const std::string& stage) {
   }
 }
 
-Loop::Verdict Loop::Judge(const Fit& current, const Fit& candidate, int extra_parameters) const {
+Loop::Verdict Loop::Judge(const Fit& previous, const Fit* ablation, const Fit& candidate,
+                          int extra_parameters) const {
+  // The reference on the training recordings: the previous fit, or the
+  // ablation where it is better there.
+  const Fit& current = ablation != nullptr ? *ablation : previous;
   Verdict v;
   const int64_t train_before = current.XorSum(recs_, true);
   const int64_t train_after = candidate.XorSum(recs_, true);
@@ -566,11 +679,34 @@ Loop::Verdict Loop::Judge(const Fit& current, const Fit& candidate, int extra_pa
     return v;
   }
   if (HasHoldout()) {
-    const double before = static_cast<double>(current.XorSum(recs_, false));
-    const double after = static_cast<double>(candidate.XorSum(recs_, false));
+    // A model's held-out error is known only up to the spread of its
+    // equally good fits, and a search that converged tightly has less
+    // spread than one that did not: the effect must lower the held-out error
+    // both at the best training fits and at the median over the equally
+    // good fits (its best training fit where they were not measured). The
+    // ablation, one more fit of the previous model, is the reference where
+    // it does better on training.
+    auto typical = [&](const Fit& fit) {
+      return fit.equally_good.fits > 0 ? static_cast<double>(fit.equally_good.holdout_xor_median)
+                                       : static_cast<double>(fit.XorSum(recs_, false));
+    };
+    const double best_before = static_cast<double>(current.XorSum(recs_, false));
+    const double best_after = static_cast<double>(candidate.XorSum(recs_, false));
+    double typical_before = typical(previous);
+    if (ablation != nullptr) typical_before = std::min(typical_before, best_before);
+    const double typical_after = typical(candidate);
     const double noise = NoiseBudget(false);
+    auto margin = [&](double before) {
+      return std::max(o_.noise_factor * (1 + extra_parameters) * noise, o_.min_relative_gain * before);
+    };
+    // The deciding comparison: the one whose drop exceeds its margin by less.
+    const double best_slack = best_before - best_after - margin(best_before);
+    const double typical_slack = typical_before - typical_after - margin(typical_before);
+    const bool decided_at_best = best_slack <= typical_slack;
+    const double before = decided_at_best ? best_before : typical_before;
+    const double after = decided_at_best ? best_after : typical_after;
     v.gain = before - after;
-    v.margin = std::max(o_.noise_factor * (1 + extra_parameters) * noise, o_.min_relative_gain * before);
+    v.margin = margin(before);
     v.criterion = "held-out XOR sum";
     const bool train_ok = train_after <= train_before;
     // The XOR sum also falls when the mesh leaves an object it overlaps
@@ -587,11 +723,21 @@ Loop::Verdict Loop::Judge(const Fit& current, const Fit& candidate, int extra_pa
     iou_after /= std::max(held, 1);
     const bool iou_ok = iou_after >= iou_before;
     v.pass = v.gain > v.margin && train_ok && iou_ok;
+    auto spread = [](const EquallyGoodFits& g) {
+      return g.fits == 0 ? std::string("not measured")
+                         : fmt::format("{} fits, {} to {}", g.fits, g.holdout_xor_min, g.holdout_xor_max);
+    };
+    auto percent = [](double b, double a) { return b > 0 ? 100.0 * (a - b) / b : 0.0; };
     v.reason = fmt::format(
-        "held-out XOR sum {:.0f} -> {:.0f} ({:+.1f}%): drop {:.0f} px {} the margin {:.0f} px = "
-        "max({} x (1 + {} extra parameters) x segmentation noise {:.0f} px, {:.0f}% of {:.0f}); "
-        "training XOR sum {} -> {}{}; held-out mean IoU {:.4f} -> {:.4f}{}",
-        before, after, before > 0 ? 100.0 * (after - before) / before : 0.0, v.gain,
+        "held-out XOR sum at the best training fits {:.0f} -> {:.0f} ({:+.1f}%), median over the "
+        "equally good fits {:.0f} -> {:.0f} ({:+.1f}%) (training XOR within {:.0f} px of the best; "
+        "before: {}; after: {}): the deciding drop ({}), {:.0f} px, {} the margin {:.0f} px = max({} x "
+        "(1 + {} extra parameters) x segmentation noise {:.0f} px, {:.0f}% of {:.0f}); training "
+        "XOR sum {} -> {}{}; held-out mean IoU {:.4f} -> {:.4f}{}",
+        best_before, best_after, percent(best_before, best_after), typical_before, typical_after,
+        percent(typical_before, typical_after), candidate.equally_good.training_tolerance_px,
+        spread(previous.equally_good), spread(candidate.equally_good),
+        decided_at_best ? "at the best fits" : "of the medians", v.gain,
         v.gain > v.margin ? "exceeds" : "does not exceed", v.margin, o_.noise_factor,
         extra_parameters, noise, 100.0 * o_.min_relative_gain, before, train_before, train_after,
         train_ok ? "" : " (rose: the fit got worse where it was fitted)", iou_before, iou_after,
@@ -658,11 +804,18 @@ LoopResult Loop::Run() {
                 "{:.0f}% of the held-out XOR sum before), where p is the number of parameters the "
                 "effect adds and N the held-out recordings' segmentation noise (per frame the "
                 "object pixels that flicker for one frame, mean over frames, summed over "
-                "frames), the training XOR sum does not rise and the held-out mean IoU does not fall "
-                "(the XOR sum also drops when a mesh leaves an object it overlaps poorly); the comparison is against the better "
-                "of the previous model and the previous model with the new calibration's values "
-                "(the effect off). Each round tries the {} best ranked hypotheses with confidence >= {:.2f} and keeps the one with the largest "
-                "held-out drop that passes; the loop stops when none passes or {} effects are kept.",
+                "frames), the training XOR sum does not rise and the held-out mean IoU does not "
+                "fall (the XOR sum also drops when a mesh leaves an object it overlaps poorly). "
+                "The drop must pass both at the models' best training fits and between the "
+                "medians over their equally good fits (fits equally good on training differ on "
+                "held-out data): up to {} of a calibration's parameter sets whose training XOR "
+                "sum exceeds the best by less than max({} x the training recordings' "
+                "segmentation noise, {:.0f}% of it), re-scored on the held-out recordings. The "
+                "previous model is replaced by the previous model with the new calibration's "
+                "values (the effect off) where that is better on training. Each round tries the {} best ranked hypotheses with confidence >= "
+                "{:.2f} and keeps the one with the largest held-out drop that passes; the loop "
+                "stops when none passes or {} effects are kept.",
+                o_.noise_factor, 100.0 * o_.min_relative_gain, o_.equally_good_fits,
                 o_.noise_factor, 100.0 * o_.min_relative_gain, o_.tries_per_round,
                 o_.min_confidence, o_.max_effects)
           : fmt::format(
@@ -688,6 +841,7 @@ LoopResult Loop::Run() {
   int index = 1;
   Log(fmt::format("calibrating the base model ({} evaluations, {} threads)", o_.budget, threads_));
   Fit current = Calibrate(index++, {}, nullptr);
+  MeasureEquallyGood(&current);
   const Fit base = current;
   report_.stages.push_back(MakeStage(base, "", StageDecision::kBase));
   report_.stages.back().criterion = holdout ? "held-out XOR sum" : "training XOR sum";
@@ -695,8 +849,8 @@ LoopResult Loop::Run() {
       static_cast<double>(base.XorSum(recs_, !holdout));
   report_.stages.back().reason = "the paper's base model";
   AddResiduals(base);
-  Log(fmt::format("base: training XOR {}, held-out XOR {} ({:.1f} s)", base.XorSum(recs_, true),
-                  base.XorSum(recs_, false), base.seconds));
+  Log(fmt::format("base: training XOR {}, held-out XOR {} ({:.1f} s){}", base.XorSum(recs_, true),
+                  base.XorSum(recs_, false), base.seconds, EquallyGoodLine(base.equally_good)));
 
   std::set<std::string> rejected_with;  // "model|effect" pairs tried
   for (int round = 1; static_cast<int>(current.effects.size()) < o_.max_effects; ++round) {
@@ -733,6 +887,7 @@ LoopResult Loop::Run() {
       Log(fmt::format("round {}: calibrating {} (warm start from {})", round, StageName(effects),
                       StageName(current.effects)));
       Fit fit = Calibrate(index++, effects, &current);
+      MeasureEquallyGood(&fit);
       // The reference: the previous model, or the previous model with the
       // candidate's values (the effect switched off) where that is better
       // on the training recordings: a recalibration that found better base
@@ -743,10 +898,9 @@ LoopResult Loop::Run() {
       Measure(&ablation);
       const bool ablation_better =
           ablation.AllOk() && ablation.XorSum(recs_, true) < current.XorSum(recs_, true);
-      const Fit& reference = ablation_better ? ablation : current;
       const int extra = static_cast<int>(SearchSpace(LoopParameterSettings({effect}, scales_, current.values)).dimension()) -
                         static_cast<int>(SearchSpace(LoopParameterSettings({}, scales_, current.values)).dimension());
-      Verdict v = Judge(reference, fit, extra);
+      Verdict v = Judge(current, ablation_better ? &ablation : nullptr, fit, extra);
       if (ablation_better) {
         v.reason = fmt::format(
             "against the previous model with this calibration's values and {} off (training "
@@ -757,7 +911,8 @@ LoopResult Loop::Run() {
       stage.criterion = v.criterion;
       stage.criterion_value = v.gain;
       stage.reason = v.reason;
-      Log(fmt::format("round {}: {}: {}", round, StageName(effects), v.reason));
+      Log(fmt::format("round {}: {}: {}{}", round, StageName(effects), v.reason,
+                      EquallyGoodLine(fit.equally_good)));
       stage_index.push_back(report_.stages.size());
       report_.stages.push_back(std::move(stage));
       if (v.pass && (best < 0 || v.gain > best_gain)) {
@@ -784,7 +939,8 @@ LoopResult Loop::Run() {
     current = std::move(fits[best]);
     report_.effects_kept = current.effects;
     AddResiduals(current);
-    Log(fmt::format("round {}: kept {}", round, current.effects.back()));
+    Log(fmt::format("round {}: kept {}{}", round, current.effects.back(),
+                    EquallyGoodLine(current.equally_good)));
   }
 
   AddOverlays(base, "base");

@@ -109,7 +109,7 @@ json ToJson(const ParameterValues& values) {
 json ToJson(const ReportStage& s) {
   json errors = json::array();
   for (const RecordingScore& e : s.errors) errors.push_back(ToJson(e));
-  return {{"name", s.name},
+  json j = {{"name", s.name},
           {"effect_tried", s.effect_tried},
           {"decision", ToString(s.decision)},
           {"effects", s.effects},
@@ -120,6 +120,16 @@ json ToJson(const ReportStage& s) {
           {"reason", s.reason},
           {"calibration_time_s", Number(s.calibration_time_s)},
           {"evaluations", s.evaluations}};
+  if (s.equally_good.fits > 0) {
+    const EquallyGoodFits& g = s.equally_good;
+    j["equally_good"] = {{"fits", g.fits},
+                         {"training_tolerance_px", Number(g.training_tolerance_px)},
+                         {"holdout_xor_min", g.holdout_xor_min},
+                         {"holdout_xor_max", g.holdout_xor_max},
+                         {"holdout_xor_median", g.holdout_xor_median},
+                         {"holdout_iou_at_min", Number(g.holdout_iou_at_min)}};
+  }
+  return j;
 }
 
 ReportStage StageFromJson(const json& j, const std::string& path) {
@@ -148,6 +158,16 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
   s.reason = in.Text("reason");
   s.calibration_time_s = in.Num("calibration_time_s");
   s.evaluations = static_cast<int>(in.Int("evaluations"));
+  if (j.contains("equally_good")) {  // optional: measured only for kept models
+    const In g(in.Raw("equally_good"), in.Path("equally_good"));
+    s.equally_good.fits = static_cast<int>(g.Int("fits"));
+    if (s.equally_good.fits < 1) Bad(g.Path("fits"), "expected at least 1");
+    s.equally_good.training_tolerance_px = g.Num("training_tolerance_px");
+    s.equally_good.holdout_xor_min = g.Int("holdout_xor_min");
+    s.equally_good.holdout_xor_max = g.Int("holdout_xor_max");
+    s.equally_good.holdout_xor_median = g.Int("holdout_xor_median");
+    s.equally_good.holdout_iou_at_min = g.Num("holdout_iou_at_min");
+  }
   return s;
 }
 

@@ -215,6 +215,15 @@ std::string Params(const ParameterValues& values) {
   return s;
 }
 
+// The held-out spread of a model's equally good fits, for its reason cell.
+std::string EquallyGoodText(const EquallyGoodFits& g) {
+  if (g.fits == 0) return "";
+  return fmt::format(
+      "<br><i>{} equally good fits (training XOR within {:.0f} px of the best): held-out XOR "
+      "{} to {}</i>",
+      g.fits, g.training_tolerance_px, g.holdout_xor_min, g.holdout_xor_max);
+}
+
 constexpr const char* kStyle = R"(
 body { font-family: sans-serif; margin: 2em; max-width: 1200px; color: #222; }
 table { border-collapse: collapse; margin: 1em 0; }
@@ -288,7 +297,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     h << "<tr class=\"" << ToString(s.decision) << "\"><td>" << Escape(s.name) << "</td><td>"
       << Escape(s.effect_tried) << "</td><td>" << ToString(s.decision) << "</td><td>"
       << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << "</td><td>"
-      << Escape(s.reason) << "</td><td>" << Params(s.parameters) << "</td><td class=\"n\">"
+      << Escape(s.reason) << EquallyGoodText(s.equally_good) << "</td><td>" << Params(s.parameters)
+      << "</td><td class=\"n\">"
       << s.evaluations << "</td><td class=\"n\">" << Num(s.calibration_time_s, 1)
       << "</td></tr>\n";
   }

@@ -86,6 +86,7 @@ LoopReport MakeReport(const fs::path& dir) {
   base.reason = "the paper's model";
   base.evaluations = 160;
   base.calibration_time_s = 3.0;
+  base.equally_good = {9, 450.0, 1150, 1420, 1260, 0.91};
 
   ReportStage plastic = base;
   plastic.name = "base+plasticity";
@@ -95,6 +96,7 @@ LoopReport MakeReport(const fs::path& dir) {
   plastic.parameters["plastic_yield_strain"] = 0.04;
   plastic.errors = {Error("a", 600, 40), Error("b", 700, 40)};
   plastic.reason = "held-out XOR -42%";
+  plastic.equally_good = {};
 
   ReportStage friction = plastic;
   friction.name = "base+plasticity+table_friction";
@@ -144,6 +146,11 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   EXPECT_EQ(row_b["after"]["xor_sum"], report.stages[1].errors[1].xor_sum);
   EXPECT_DOUBLE_EQ(row_b["after"]["mean_iou"].get<double>(), 0.902);
   EXPECT_DOUBLE_EQ(doc["final_parameters"]["plastic_yield_strain"].get<double>(), 0.04);
+  // The held-out spread of equally good fits, where it was measured only.
+  EXPECT_EQ(doc["stages"][0]["equally_good"]["fits"], 9);
+  EXPECT_EQ(doc["stages"][0]["equally_good"]["holdout_xor_max"], 1420);
+  EXPECT_FALSE(doc["stages"][1].contains("equally_good"));
+  EXPECT_EQ(back.stages[1].equally_good.fits, 0);
   // Hypotheses with their evidence.
   const auto& first = doc["rounds"][0]["hypotheses"][0];
   EXPECT_TRUE(first.contains("confidence"));
@@ -155,16 +162,27 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   EXPECT_FALSE(doc["residuals"][0]["analysis"].contains("frames"));
 }
 
+// The message LoopReportFromJson throws for `doc`, or "accepted".
+std::string Rejection(const nlohmann::json& doc) {
+  try {
+    LoopReportFromJson(doc);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "accepted";
+}
+
 TEST(LoopReport, MalformedJsonNamesTheKey) {
   const fs::path dir = testing::ScratchDir("loop_report_bad");
   nlohmann::json doc = ToJson(MakeReport(dir));
   doc["stages"][1].erase("decision");
-  try {
-    LoopReportFromJson(doc);
-    FAIL() << "missing key accepted";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("stages[1].decision"), std::string::npos) << e.what();
-  }
+  EXPECT_NE(Rejection(doc).find("stages[1].decision"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][0]["equally_good"]["fits"] = 0;
+  EXPECT_NE(Rejection(doc).find("stages[0].equally_good.fits"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][0]["equally_good"].erase("holdout_xor_median");
+  EXPECT_NE(Rejection(doc).find("stages[0].equally_good.holdout_xor_median"), std::string::npos) << Rejection(doc);
   doc = ToJson(MakeReport(dir));
   doc["stages"][2]["decision"] = "maybe";
   EXPECT_THROW(LoopReportFromJson(doc), std::invalid_argument);

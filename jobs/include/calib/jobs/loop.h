@@ -24,6 +24,7 @@
 #include "calib/jobs/job_spec.h"
 #include "calib/jobs/objective.h"
 #include "calib/results/loop_report.h"
+#include "calib/results/store.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -57,6 +58,14 @@ struct LoopOptions {
   /// more than min_relative_gain of itself. See docs/loop.md.
   double noise_factor = 1.0;
   double min_relative_gain = 0.01;
+  /// The held-out error of a model is known only up to the spread of its
+  /// equally good fits (SelectEquallyGoodFits: its calibration's parameter
+  /// sets whose training XOR sum exceeds the best by less than the margin
+  /// above computed on the training recordings): up to this many of them
+  /// are re-scored on the held-out recordings, and an effect's held-out
+  /// drop must pass both at the best fits and between the medians over
+  /// them. 0: at the best fits only.
+  int equally_good_fits = 16;
   SimulationOptions simulation;
   PreparationOptions preparation;
   /// Report: overlay PNGs of the worst frames (base and final model).
@@ -92,6 +101,16 @@ double NeutralValue(const ParameterSetting& setting);
 /// flicker, which no motion smoother than the frame rate makes). Returns the
 /// mean over frames 1..n-2 (0 with fewer than 3 frames).
 double SegmentationNoisePx(const std::vector<BitMask>& object_masks);
+
+/// The parameter sets of a calibration as good as its best on the training
+/// recordings: the successful `evaluations` (of one or more jobs of the same
+/// model) whose score is within `tolerance` of the lowest, distinct, best
+/// first. With more than `limit` of them, `limit` spread evenly over their
+/// ranks (the best and the last always among them), so that a fit that
+/// converged keeps its spread along flat directions. Deterministic: ties
+/// keep the order of `evaluations`.
+std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationRecord>& evaluations,
+                                                   double tolerance, int limit);
 
 /// Progress lines for people (stage started, calibrated, decided); called
 /// on the loop's thread. Presentation only.

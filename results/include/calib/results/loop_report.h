@@ -50,6 +50,20 @@ std::string ToString(StageDecision decision);  ///< "base", "accepted", "rejecte
 /// Throws std::invalid_argument naming the text.
 StageDecision StageDecisionFromString(const std::string& text);
 
+/// How far a calibrated model's held-out error is pinned down by its fit:
+/// the parameter sets its calibration found as good as the best on the
+/// training recordings (within the loop's margin) re-scored on the
+/// held-out recordings. An effect's held-out drop must pass at the best
+/// fits and between the medians (docs/loop.md, the criterion).
+struct EquallyGoodFits {
+  int fits = 0;                       ///< distinct parameter sets re-scored; 0: not measured
+  double training_tolerance_px = 0.0;  ///< training XOR sum within this of the best
+  int64_t holdout_xor_min = 0;        ///< held-out XOR sum over the held-out recordings
+  int64_t holdout_xor_max = 0;
+  int64_t holdout_xor_median = 0;     ///< the lower median
+  double holdout_iou_at_min = 0.0;    ///< held-out mean IoU of the fit with the minimum
+};
+
 /// One calibrated model: the base model, or the kept effects plus one tried.
 struct ReportStage {
   std::string name;            ///< e.g. "base", "base+plasticity"
@@ -63,6 +77,9 @@ struct ReportStage {
   std::string reason;           ///< the decision in words, with numbers
   double calibration_time_s = 0.0;
   int evaluations = 0;
+  /// Measured for the models the loop builds on (the base, each kept one)
+  /// when there are held-out recordings; `fits == 0` otherwise.
+  EquallyGoodFits equally_good;
 
   /// The error on `recording`, or nullptr.
   const RecordingScore* ErrorOn(const std::string& recording) const;
