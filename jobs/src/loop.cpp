@@ -337,6 +337,13 @@ class Loop {
     }
     return b;
   }
+  /// What a drop of the training (`train`) or held-out XOR sum `before` must
+  /// exceed to count: max(noise_factor x (1 + extra parameters) x the
+  /// recordings' segmentation noise, min_relative_gain x before).
+  double Margin(bool train, int extra_parameters, double before) const {
+    return std::max(o_.noise_factor * (1 + extra_parameters) * NoiseBudget(train),
+                    o_.min_relative_gain * before);
+  }
 
   const LoopOptions& o_;
   const LoopLog& log_;
@@ -566,12 +573,11 @@ void Loop::MeasureEquallyGood(Fit* fit) const {
   // Equally good: worse than the best on the training recordings by no more
   // than the margin an effect must beat to count as better there (the
   // training segmentation noise, or the minimum relative gain).
-  const double tolerance = std::max(o_.noise_factor * NoiseBudget(true),
-                                    o_.min_relative_gain * static_cast<double>(fit->XorSum(recs_, true)));
+  const double tolerance = Margin(true, 0, static_cast<double>(fit->XorSum(recs_, true)));
   std::vector<ParameterValues> sets = SelectEquallyGoodFits(evaluations, tolerance, o_.equally_good_fits);
   // The fit itself is always one of them (a warm start's best may be its
-  // starting point, which no job recorded).
-  if (std::find(sets.begin(), sets.end(), fit->values) == sets.end()) sets.insert(sets.begin(), fit->values);
+  // starting point, which no job recorded); Measure scored it already.
+  std::erase(sets, fit->values);
 
   std::vector<int> held;
   for (size_t r = 0; r < recs_.size(); ++r) {
@@ -593,17 +599,16 @@ void Loop::MeasureEquallyGood(Fit* fit) const {
   EquallyGoodFits g;
   g.training_tolerance_px = tolerance;
   std::vector<int64_t> sums;
-  for (size_t k = 0; k < sets.size(); ++k) {
+  // One fit's held-out results, results_of(h) on the h-th held-out recording.
+  auto add = [&](const auto& results_of) {
     int64_t xor_sum = 0;
     double iou = 0.0;
-    bool ok = true;
     for (size_t h = 0; h < held.size(); ++h) {
-      const EvaluationResult& e = results[k * held.size() + h];
-      ok = ok && e.ok();
+      const EvaluationResult& e = results_of(h);
+      if (!e.ok()) return;  // a fit that fails on held-out data pins nothing down
       xor_sum += e.xor_sum;
       iou += e.mean_iou;
     }
-    if (!ok) continue;  // a fit that fails on held-out data pins nothing down
     iou /= static_cast<double>(held.size());
     if (g.fits == 0 || xor_sum < g.holdout_xor_min) {
       g.holdout_xor_min = xor_sum;
@@ -612,6 +617,10 @@ void Loop::MeasureEquallyGood(Fit* fit) const {
     g.holdout_xor_max = g.fits == 0 ? xor_sum : std::max(g.holdout_xor_max, xor_sum);
     sums.push_back(xor_sum);
     ++g.fits;
+  };
+  add([&](size_t h) -> const EvaluationResult& { return fit->results[held[h]]; });
+  for (size_t k = 0; k < sets.size(); ++k) {
+    add([&](size_t h) -> const EvaluationResult& { return results[k * held.size() + h]; });
   }
   if (!sums.empty()) {
     auto middle = sums.begin() + static_cast<std::ptrdiff_t>((sums.size() - 1) / 2);
@@ -696,9 +705,7 @@ Loop::Verdict Loop::Judge(const Fit& previous, const Fit* ablation, const Fit& c
     if (ablation != nullptr) typical_before = std::min(typical_before, best_before);
     const double typical_after = typical(candidate);
     const double noise = NoiseBudget(false);
-    auto margin = [&](double before) {
-      return std::max(o_.noise_factor * (1 + extra_parameters) * noise, o_.min_relative_gain * before);
-    };
+    auto margin = [&](double before) { return Margin(false, extra_parameters, before); };
     // The deciding comparison: the one whose drop exceeds its margin by less.
     const double best_slack = best_before - best_after - margin(best_before);
     const double typical_slack = typical_before - typical_after - margin(typical_before);
@@ -767,10 +774,8 @@ Loop::Verdict Loop::Judge(const Fit& previous, const Fit* ablation, const Fit& c
     return n * std::log(std::max(s, 1.0) / std::max<int64_t>(n, 1)) + k * std::log(std::max<int64_t>(n, 2));
   };
   const double b0 = bic(sse_before, k_before), b1 = bic(sse_after, k_after);
-  const double noise = NoiseBudget(true);
   v.gain = static_cast<double>(train_before - train_after);
-  v.margin = std::max(o_.noise_factor * (1 + extra_parameters) * noise,
-                      o_.min_relative_gain * static_cast<double>(train_before));
+  v.margin = Margin(true, extra_parameters, static_cast<double>(train_before));
   v.criterion = "BIC of per-frame training XOR";
   v.pass = b1 < b0 && v.gain > v.margin;
   v.reason = fmt::format(
