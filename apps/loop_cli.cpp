@@ -26,6 +26,7 @@ struct LoopCli {
   double min_confidence = 0.05;
   int overlays = 2;
   int equally_good_fits = 16;
+  int restarts = 3;
   std::string cache_dir;
   bool no_cache = false;
   bool outline_contact = false;
@@ -79,6 +80,12 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
                   "effect's drop must also pass between their medians (0: the best fits only)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_option("--restarts", cli->restarts,
+                  "independent searches of the base model's calibration, each with --budget "
+                  "evaluations (the first from the box's centre); the best on the training "
+                  "recordings is the base fit")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--overlays", cli->overlays,
                   "overlay frames per recording at the worst moments (base and final model)")
       ->check(CLI::NonNegativeNumber)
@@ -109,6 +116,7 @@ std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) 
   options.min_confidence = cli.min_confidence;
   options.overlays_per_recording = cli.overlays;
   options.equally_good_fits = cli.equally_good_fits;
+  options.restarts = cli.restarts;
   options.write_html = !cli.no_html;
   options.simulation.outline_contact = cli.outline_contact;
   if (cli.no_cache) {

@@ -129,6 +129,11 @@ json ToJson(const ReportStage& s) {
                          {"holdout_xor_median", g.holdout_xor_median},
                          {"holdout_iou_at_min", Number(g.holdout_iou_at_min)}};
   }
+  if (!s.restart_training_xor.empty()) {
+    json restarts = json::array();
+    for (double x : s.restart_training_xor) restarts.push_back(Number(x));
+    j["restart_training_xor"] = restarts;
+  }
   return j;
 }
 
@@ -167,6 +172,15 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
     s.equally_good.holdout_xor_max = g.Int("holdout_xor_max");
     s.equally_good.holdout_xor_median = g.Int("holdout_xor_median");
     s.equally_good.holdout_iou_at_min = g.Num("holdout_iou_at_min");
+  }
+  if (j.contains("restart_training_xor")) {  // optional: calibrations from scratch only
+    const json& restarts = in.Array("restart_training_xor");
+    for (size_t i = 0; i < restarts.size(); ++i) {
+      if (!restarts[i].is_number() && !restarts[i].is_null()) {
+        Bad(fmt::format("{}[{}]", in.Path("restart_training_xor"), i), "expected a number");
+      }
+      s.restart_training_xor.push_back(restarts[i].is_null() ? NAN : restarts[i].get<double>());
+    }
   }
   return s;
 }

@@ -3,6 +3,7 @@
 #include "calib/results/report_html.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -224,6 +225,13 @@ std::string EquallyGoodText(const EquallyGoodFits& g) {
       g.fits, g.training_tolerance_px, g.holdout_xor_min, g.holdout_xor_max);
 }
 
+// The independent searches of a calibration from scratch, for its reason cell.
+std::string RestartsText(const std::vector<double>& training_xor) {
+  if (training_xor.size() < 2) return "";
+  return fmt::format("<br><i>{} independent searches, best training XOR of each: {:.0f}</i>",
+                     training_xor.size(), fmt::join(training_xor, ", "));
+}
+
 constexpr const char* kStyle = R"(
 body { font-family: sans-serif; margin: 2em; max-width: 1200px; color: #222; }
 table { border-collapse: collapse; margin: 1em 0; }
@@ -297,7 +305,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     h << "<tr class=\"" << ToString(s.decision) << "\"><td>" << Escape(s.name) << "</td><td>"
       << Escape(s.effect_tried) << "</td><td>" << ToString(s.decision) << "</td><td>"
       << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << "</td><td>"
-      << Escape(s.reason) << EquallyGoodText(s.equally_good) << "</td><td>" << Params(s.parameters)
+      << Escape(s.reason) << EquallyGoodText(s.equally_good)
+       << RestartsText(s.restart_training_xor) << "</td><td>" << Params(s.parameters)
       << "</td><td class=\"n\">"
       << s.evaluations << "</td><td class=\"n\">" << Num(s.calibration_time_s, 1)
       << "</td></tr>\n";

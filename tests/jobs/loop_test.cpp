@@ -96,12 +96,85 @@ TEST(Loop, EquallyGoodFitsMeasureTheHeldOutSpreadOfAFlatValley) {
   const int64_t training = base.errors.front().xor_sum;
   EXPECT_NEAR(spread.training_tolerance_px, 0.01 * static_cast<double>(training), 1.0)
       << "1% of the training XOR sum (above the training segmentation noise)";
-  // The per-fit numbers come from the store's evaluations of that job.
+  // The per-fit numbers come from the store's evaluations of the base
+  // model's searches (every job of the store: no effect was tried).
   const ResultStore store(result.store);
-  const std::vector<EvaluationRecord> evaluations = store.Evaluations(store.Jobs().front().id);
+  std::vector<EvaluationRecord> evaluations;
+  for (const auto& job : store.Jobs()) {
+    for (EvaluationRecord& e : store.Evaluations(job.id)) evaluations.push_back(std::move(e));
+  }
   const std::vector<ParameterValues> sets =
       SelectEquallyGoodFits(evaluations, spread.training_tolerance_px, options.equally_good_fits);
   EXPECT_EQ(static_cast<int>(sets.size()), spread.fits);
+}
+
+// A calibration from scratch runs independent searches: the fit is the
+// best of them on the training recordings, each search is a job of the
+// store with the whole budget, and the report states what each reached.
+TEST(Loop, RestartsKeepTheBestOfIndependentSearches) {
+  LoopOptions options = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {},
+                                                 "loop_restarts");
+  options.budget = 24;
+  options.max_effects = 0;
+  options.restarts = 3;
+  const LoopResult result = RunLoop(options);
+  const ReportStage& base = result.report.stages.front();
+  ASSERT_EQ(base.restart_training_xor.size(), 3u);
+  const double best =
+      *std::min_element(base.restart_training_xor.begin(), base.restart_training_xor.end());
+  EXPECT_EQ(static_cast<double>(base.errors.front().xor_sum), best)
+      << "the fit is the best search's, re-measured";
+  const ResultStore store(result.store);
+  ASSERT_EQ(store.Jobs().size(), 3u);
+  for (size_t r = 0; r < 3; ++r) {
+    const auto job = store.Jobs()[r];
+    double job_best = std::numeric_limits<double>::infinity();
+    const std::vector<EvaluationRecord> evaluations = store.Evaluations(job.id);
+    EXPECT_EQ(static_cast<int64_t>(evaluations.size()), options.budget) << job.name;
+    for (const EvaluationRecord& e : evaluations) {
+      if (e.ok) job_best = std::min(job_best, e.score);
+    }
+    EXPECT_EQ(job_best, base.restart_training_xor[r]) << job.name;
+    // The first search starts at the box's centre, the others where
+    // RestartStart puts them.
+    const nlohmann::json& settings = job.spec.at("optimizer").at("settings");
+    EXPECT_EQ(settings.contains("x0"), r > 0) << job.name;
+  }
+  const auto x0 = [&](size_t r) {
+    return store.Jobs()[r].spec.at("optimizer").at("settings").at("x0").get<std::vector<double>>();
+  };
+  EXPECT_NE(x0(1), x0(2));
+  EXPECT_EQ(x0(1).size(), 5u) << "k_D, k_d, k_A, k_phi, tau";
+  EXPECT_EQ(base.evaluations, 3 * options.budget);
+  EXPECT_EQ(ReadLoopReportJson(result.report_json).stages.front().restart_training_xor,
+            base.restart_training_xor);
+
+  // One restart is the plain search: the first search of three, alone.
+  options.restarts = 1;
+  options.out_dir = testing::ScratchDir("loop_restarts_1");
+  const LoopResult one = RunLoop(options);
+  EXPECT_TRUE(one.report.stages.front().restart_training_xor.empty());
+  EXPECT_EQ(static_cast<double>(one.report.stages.front().errors.front().xor_sum),
+            base.restart_training_xor[0]);
+}
+
+TEST(Loop, RestartsStartAtSeededPointsInsideTheBox) {
+  EXPECT_EQ(RestartStart(3, 7, 0), std::vector<double>(3, 0.5)) << "restart 0: the centre";
+  const std::vector<double> a = RestartStart(6, 7, 1);
+  ASSERT_EQ(a.size(), 6u);
+  for (double u : a) {
+    EXPECT_GE(u, 0.1);
+    EXPECT_LE(u, 0.9);
+  }
+  EXPECT_EQ(a, RestartStart(6, 7, 1)) << "the same seed and restart: the same start";
+  EXPECT_NE(a, RestartStart(6, 7, 2));
+  EXPECT_NE(a, RestartStart(6, 8, 1));
+  // Spread over the box, not bunched: 200 starts cover every tenth of it.
+  std::vector<int> bins(8, 0);
+  for (int r = 1; r <= 200; ++r) {
+    for (double u : RestartStart(2, 11, r)) ++bins[std::min(7, static_cast<int>((u - 0.1) / 0.1))];
+  }
+  for (int count : bins) EXPECT_GT(count, 20);
 }
 
 // The report without what depends on the clock or the folder.
@@ -152,8 +225,10 @@ TEST(Loop, OutlineContactReachesTheStoredJobsAndTheReport) {
   EXPECT_TRUE(stated);
   const ResultStore store(result.store);
   const std::vector<JobInfo> jobs = store.Jobs();
-  ASSERT_EQ(jobs.size(), 1u);
-  EXPECT_EQ(jobs[0].spec.at("model").value("outline_contact", false), true) << jobs[0].spec.dump();
+  ASSERT_EQ(static_cast<int>(jobs.size()), options.restarts) << "the base model's searches";
+  for (const JobInfo& job : jobs) {
+    EXPECT_EQ(job.spec.at("model").value("outline_contact", false), true) << job.spec.dump();
+  }
 }
 
 TEST(Loop, BadOptionsAreNamed) {
@@ -177,6 +252,9 @@ TEST(Loop, BadOptionsAreNamed) {
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
   o.equally_good_fits = -1;
   EXPECT_NE(message(o).find("--equally-good-fits = -1"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.restarts = 0;
+  EXPECT_NE(message(o).find("--restarts = 0"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "absent_recording"}, {}, "loop_bad");
   EXPECT_NE(message(o).find("absent_recording"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
@@ -249,6 +327,27 @@ TEST(Loop, SegmentationNoiseCountsOneFrameFlicker) {
   masks[3].SetSpan(14, 0, 3);
   EXPECT_DOUBLE_EQ(SegmentationNoisePx(masks), 5.0);  // 5, 7, 3 -> mean 5
   EXPECT_EQ(SegmentationNoisePx({masks[0], masks[1]}), 0.0);
+}
+
+// The IoU guard's tolerance: the XOR margin over the held-out object
+// pixels, summed over recordings and frames.
+TEST(Loop, IouToleranceIsTheMarginOverTheHeldOutObjectPixels) {
+  auto object = [](int frames, int rows) {
+    std::vector<BitMask> masks;
+    for (int f = 0; f < frames; ++f) {
+      BitMask m(100, 20);
+      for (int y = 0; y < rows; ++y) m.SetSpan(y, 0, 50);  // 50 pixels a row
+      masks.push_back(m);
+    }
+    return masks;
+  };
+  const std::vector<BitMask> a = object(4, 10), b = object(2, 5);  // 2000 and 500 pixels
+  EXPECT_DOUBLE_EQ(IouTolerance(250.0, {&a, &b}), 250.0 / 2500.0);
+  EXPECT_DOUBLE_EQ(IouTolerance(250.0, {&a}), 250.0 / 2000.0);
+  EXPECT_EQ(IouTolerance(-5.0, {&a}), 0.0) << "no negative tolerance";
+  const std::vector<BitMask> empty(3, BitMask(100, 20));
+  EXPECT_EQ(IouTolerance(250.0, {&empty}), 0.0) << "no object: no tolerance";
+  EXPECT_EQ(IouTolerance(250.0, {}), 0.0);
 }
 
 }  // namespace

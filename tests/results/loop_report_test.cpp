@@ -87,8 +87,10 @@ LoopReport MakeReport(const fs::path& dir) {
   base.evaluations = 160;
   base.calibration_time_s = 3.0;
   base.equally_good = {9, 450.0, 1150, 1420, 1260, 0.91};
+  base.restart_training_xor = {2100.0, 1000.0, 1003.0};
 
   ReportStage plastic = base;
+  plastic.restart_training_xor.clear();
   plastic.name = "base+plasticity";
   plastic.effect_tried = "plasticity";
   plastic.decision = StageDecision::kAccepted;
@@ -151,6 +153,9 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   EXPECT_EQ(doc["stages"][0]["equally_good"]["holdout_xor_max"], 1420);
   EXPECT_FALSE(doc["stages"][1].contains("equally_good"));
   EXPECT_EQ(back.stages[1].equally_good.fits, 0);
+  // The base model's independent searches, where there were several.
+  EXPECT_EQ(doc["stages"][0]["restart_training_xor"], nlohmann::json::array({2100.0, 1000.0, 1003.0}));
+  EXPECT_FALSE(doc["stages"][1].contains("restart_training_xor"));
   // Hypotheses with their evidence.
   const auto& first = doc["rounds"][0]["hypotheses"][0];
   EXPECT_TRUE(first.contains("confidence"));
@@ -184,6 +189,9 @@ TEST(LoopReport, MalformedJsonNamesTheKey) {
   doc["stages"][0]["equally_good"].erase("holdout_xor_median");
   EXPECT_NE(Rejection(doc).find("stages[0].equally_good.holdout_xor_median"), std::string::npos) << Rejection(doc);
   doc = ToJson(MakeReport(dir));
+  doc["stages"][0]["restart_training_xor"][1] = "low";
+  EXPECT_NE(Rejection(doc).find("stages[0].restart_training_xor[1]"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
   doc["stages"][2]["decision"] = "maybe";
   EXPECT_THROW(LoopReportFromJson(doc), std::invalid_argument);
   EXPECT_THROW(ReadLoopReportJson(dir / "absent.json"), std::runtime_error);
@@ -216,6 +224,8 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
   EXPECT_NE(html.find("<image"), std::string::npos) << "heat maps are gnuplot images";
   EXPECT_NE(html.find("src=\"overlays/a_base_000012.png\""), std::string::npos);
   EXPECT_NE(html.find("base+plasticity"), std::string::npos);
+  EXPECT_NE(html.find("3 independent searches, best training XOR of each: 2100, 1000, 1003"),
+            std::string::npos);
   EXPECT_NE(html.find(std::to_string(report.stages[1].errors[1].xor_sum)), std::string::npos);
   EXPECT_NE(html.find("a note with &lt;html&gt; &amp; &quot;quotes&quot;"), std::string::npos);
   EXPECT_EQ(html.find("This report has no plots"), std::string::npos);

@@ -66,6 +66,13 @@ struct LoopOptions {
   /// drop must pass both at the best fits and between the medians over
   /// them. 0: at the best fits only.
   int equally_good_fits = 16;
+  /// Independent searches of a calibration from scratch (the base model),
+  /// each with the whole `budget`: the first from the box's centre, the
+  /// others from seeded points of the box (RestartStart). The best on the
+  /// training recordings is the fit; every search's records count towards
+  /// its equally good fits. A flat or two-basin training error lands one
+  /// search in the worse basin as often as not (docs/loop.md).
+  int restarts = 3;
   SimulationOptions simulation;
   PreparationOptions preparation;
   /// Report: overlay PNGs of the worst frames (base and final model).
@@ -92,6 +99,13 @@ std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::strin
                                                     const LoopScales& scales,
                                                     const ParameterValues& reference);
 
+/// Where independent search `restart` (>= 1) of a calibration from scratch
+/// starts, in unit-box coordinates: each coordinate drawn from [0.1, 0.9]
+/// by a generator seeded with (`seed`, `restart`), so that a restart is
+/// the same at every thread count and after a resume. Restart 0 starts
+/// at the centre (0.5).
+std::vector<double> RestartStart(int dimension, uint64_t seed, int restart);
+
 /// The value of each effect parameter that leaves the model (nearly) as it
 /// was without the effect; the warm start of a new effect.
 double NeutralValue(const ParameterSetting& setting);
@@ -101,6 +115,14 @@ double NeutralValue(const ParameterSetting& setting);
 /// flicker, which no motion smoother than the frame rate makes). Returns the
 /// mean over frames 1..n-2 (0 with fewer than 3 frames).
 double SegmentationNoisePx(const std::vector<BitMask>& object_masks);
+
+/// The fall of the held-out mean IoU that an XOR margin of `margin_px`
+/// allows: the margin over the object pixels of the held-out recordings
+/// (summed over their frames). A rise of the XOR sum by the margin, spread
+/// over the frames, lowers each frame's IoU by at most its share over the
+/// object's pixels; an IoU fall the XOR margin calls insignificant is no
+/// fall (docs/loop.md, the criterion). 0 without object pixels.
+double IouTolerance(double margin_px, const std::vector<const std::vector<BitMask>*>& held_out_masks);
 
 /// The parameter sets of a calibration as good as its best on the training
 /// recordings: the successful `evaluations` (of one or more jobs of the same

@@ -80,6 +80,10 @@ struct ReportStage {
   /// Measured for the models the loop builds on (the base, each kept one)
   /// when there are held-out recordings; `fits == 0` otherwise.
   EquallyGoodFits equally_good;
+  /// A calibration from scratch (the base model) runs `--restarts`
+  /// independent searches: the best training XOR sum each reached, in
+  /// order (the first from the box's centre). Empty for warm-started stages.
+  std::vector<double> restart_training_xor;
 
   /// The error on `recording`, or nullptr.
   const RecordingScore* ErrorOn(const std::string& recording) const;
