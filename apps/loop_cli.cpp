@@ -11,25 +11,30 @@
 
 namespace calib::cli {
 
+namespace {
+// The options' defaults are LoopOptions', stated once there.
+const LoopOptions kDefaults{};
+}  // namespace
+
 struct LoopCli {
   CLI::App* loop = nullptr;
   std::vector<std::filesystem::path> train;
   std::vector<std::filesystem::path> holdout;
   std::filesystem::path out;
-  uint64_t seed = 1;
-  int64_t budget = 160;
-  int64_t effect_budget = 0;
-  int threads = 0;
-  std::string optimizer = "cmaes";
-  int max_effects = 2;
-  int tries = 3;
-  double min_confidence = 0.05;
-  int overlays = 2;
-  int equally_good_fits = 16;
-  int restarts = 3;
+  uint64_t seed = kDefaults.seed;
+  int64_t budget = kDefaults.budget;
+  int64_t effect_budget = kDefaults.effect_budget;
+  int threads = kDefaults.threads;
+  std::string optimizer = kDefaults.optimizer;
+  int max_effects = kDefaults.max_effects;
+  int tries = kDefaults.tries_per_round;
+  double min_confidence = kDefaults.min_confidence;
+  int overlays = kDefaults.overlays_per_recording;
+  int equally_good_fits = kDefaults.equally_good_fits;
+  int restarts = kDefaults.restarts;
   std::string cache_dir;
   bool no_cache = false;
-  bool outline_contact = false;
+  bool outline_contact = kDefaults.simulation.outline_contact;
   bool no_html = false;
   bool quiet = false;
 };

@@ -306,7 +306,7 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
       << Escape(s.effect_tried) << "</td><td>" << ToString(s.decision) << "</td><td>"
       << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << "</td><td>"
       << Escape(s.reason) << EquallyGoodText(s.equally_good)
-       << RestartsText(s.restart_training_xor) << "</td><td>" << Params(s.parameters)
+      << RestartsText(s.restart_training_xor) << "</td><td>" << Params(s.parameters)
       << "</td><td class=\"n\">"
       << s.evaluations << "</td><td class=\"n\">" << Num(s.calibration_time_s, 1)
       << "</td></tr>\n";
