@@ -4,7 +4,9 @@
 
 #include "calib/core/model_definition.h"
 #include "calib/core/parameters.h"
+#include "calib/evaluator/recording_compare.h"
 #include "calib/jobs/commands.h"
+#include "calib/results/frame_report.h"
 #include "calib/synth/scenario.h"
 #include "calib/synth/synthesize.h"
 #include "job_cli.h"
@@ -33,6 +35,11 @@ void AddEffectsOption(CLI::App* cmd, CommandSettings* settings) {
 }
 
 // Options shared by every subcommand that meshes and simulates a recording.
+void AddCacheOptions(CLI::App* cmd, std::string* cache_dir, bool* no_cache) {
+  cmd->add_option("--cache-dir", *cache_dir, "segmentation cache folder")->capture_default_str();
+  cmd->add_flag("--no-cache", *no_cache, "do not read or write the segmentation cache");
+}
+
 void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* integrator,
                      std::string* cache_dir, bool* no_cache) {
   cmd->add_option("--edge", settings->preparation.mesher.edge_length_px,
@@ -42,8 +49,7 @@ void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* inte
       ->capture_default_str();
   cmd->add_option("--integrator", *integrator, "first_order (paper eq. 10) or verlet (eq. 8)")
       ->capture_default_str();
-  cmd->add_option("--cache-dir", *cache_dir, "segmentation cache folder")->capture_default_str();
-  cmd->add_flag("--no-cache", *no_cache, "do not read or write the segmentation cache");
+  AddCacheOptions(cmd, cache_dir, no_cache);
   AddEffectsOption(cmd, settings);
 }
 
@@ -113,6 +119,18 @@ int main(int argc, char** argv) {
       "synth", "make a synthetic recording from a scenario file (docs/scenario.md)");
   synth->add_option("scenario", scenario_path, "scenario file (YAML)")->required();
   synth->add_option("--out", synth_out, "recording folder to write")->required();
+  bool without_effects = false;
+  synth->add_flag("--without-effects", without_effects,
+                  "switch the scenario's effects off (its twin, for `calib compare`: the effects' "
+                  "footprint in pixels)");
+
+  std::filesystem::path compare_a, compare_b, compare_csv;
+  auto* compare = app.add_subcommand(
+      "compare", "per frame, the pixels where two recordings' segmented objects disagree");
+  compare->add_option("a", compare_a, "recording folder")->required();
+  compare->add_option("b", compare_b, "recording folder (same frame count and size)")->required();
+  compare->add_option("--csv", compare_csv, "also write the per-frame difference here");
+  AddCacheOptions(compare, &cache_dir, &no_cache);
 
   const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best
   const auto loop_cli = calib::cli::AddLoopSubcommand(app);
@@ -146,12 +164,32 @@ int main(int argc, char** argv) {
       PrintResult(result);
       return result.ok() ? 0 : 3;
     } else if (*synth) {
-      const calib::synth::Scenario scenario = calib::synth::LoadScenario(scenario_path);
+      calib::synth::Scenario scenario = calib::synth::LoadScenario(scenario_path);
+      if (without_effects) scenario = calib::synth::WithoutEffects(scenario);
       const auto summary = calib::synth::Synthesize(scenario, synth_out);
       fmt::print("wrote {} (recording.json, video.mp4, track.csv, truth.json)\n",
                  summary.folder.string());
       fmt::print("{}\n", summary.BriefReport());
       fmt::print("time: {:.1f} s, size: {:.2f} MB\n", summary.total_s, summary.bytes / 1e6);
+    } else if (*compare) {
+      const calib::Recording a = calib::LoadRecording(compare_a);
+      const calib::Recording b = calib::LoadRecording(compare_b);
+      const calib::RecordingDifference d = calib::CompareRecordings(
+          a, b, settings.preparation.segmentation, settings.preparation.cache_dir);
+      size_t worst = 0;
+      for (size_t f = 0; f < d.frames.size(); ++f) {
+        if (d.frames[f].xor_px > d.frames[worst].xor_px) worst = f;
+      }
+      fmt::print("difference (XOR pixels summed over frames): {}\n", d.XorSum());
+      fmt::print("mean IoU: {:.4f} over {} frames\n", d.MeanIou(), d.frames.size());
+      if (!d.frames.empty()) {
+        fmt::print("largest at frame {}: {} px ({} only in a, {} only in b)\n", worst,
+                   d.frames[worst].xor_px, d.frames[worst].only_a_px, d.frames[worst].only_b_px);
+      }
+      if (!compare_csv.empty()) {
+        calib::WriteRecordingDifferenceCsv(compare_csv, d);
+        fmt::print("per-frame difference: {}\n", compare_csv.string());
+      }
     } else if (*params_cmd) {
       for (const auto& spec : calib::ModelParameterSpecs(settings.model)) {
         fmt::print("{:<6} {}{}, {}]  {}  ({})\n", spec.name, spec.lower_open ? "(" : "[",

@@ -13,11 +13,7 @@
 # bits of video.mp4 may differ between encoder builds.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-calib=${CALIB:-build/apps/calib}
-if [[ ! -x "$calib" ]]; then
-  echo "make-examples.sh: $calib: no calib executable (build it with scripts/build.sh or set CALIB)" >&2
-  exit 2
-fi
+source scripts/calib-exe.sh
 if [[ $# -gt 0 ]]; then
   names=("$@")
 else

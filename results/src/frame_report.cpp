@@ -37,4 +37,21 @@ void WriteFrameReportCsv(const std::filesystem::path& path, const EvaluationResu
   }
 }
 
+void WriteRecordingDifferenceCsv(const std::filesystem::path& path,
+                                 const RecordingDifference& difference) {
+  csv_writer::File out = csv_writer::Open(path);
+  if (!out) throw std::runtime_error(fmt::format("{}: cannot open for writing", path.string()));
+  WriteRecord(out.get(), {"frame", "xor", "only_a", "only_b", "a", "b", "iou"});
+  for (size_t frame = 0; frame < difference.frames.size(); ++frame) {
+    const FrameDifference& d = difference.frames[frame];
+    WriteRecord(out.get(), {std::to_string(frame), std::to_string(d.xor_px),
+                            std::to_string(d.only_a_px), std::to_string(d.only_b_px),
+                            std::to_string(d.a_px), std::to_string(d.b_px),
+                            fmt::format("{:.6f}", d.iou)});
+  }
+  if (!csv_writer::Close(std::move(out))) {
+    throw std::runtime_error(fmt::format("{}: write failed", path.string()));
+  }
+}
+
 }  // namespace calib

@@ -31,6 +31,21 @@ std::vector<std::string> Effects::EnabledNames() const {
   return names;
 }
 
+Scenario WithoutEffects(const Scenario& scenario) {
+  Scenario twin = scenario;
+  twin.effects = Effects{};
+  if (twin.kind == ScenarioKind::kHang) twin.effects.inertia_gravity = scenario.effects.inertia_gravity;
+  const std::vector<std::string> off = scenario.effects.EnabledNames();
+  std::string removed;
+  for (const std::string& name : off) {
+    if (name == "inertia_gravity" && twin.kind == ScenarioKind::kHang) continue;
+    removed += (removed.empty() ? "" : ", ") + name;
+  }
+  twin.notes = fmt::format("{} [effects switched off: {}]", scenario.notes,
+                           removed.empty() ? std::string("none were on") : removed);
+  return twin;
+}
+
 Scenario DefaultScenario(ScenarioKind kind) {
   Scenario s;
   s.kind = kind;

@@ -93,7 +93,9 @@ TEST(InitialMotion, RestsAtTheObservedEquilibriumAndStartsWithTheObservedVelocit
   const ModelParameters params = calib::testing::StiffTestParameters();
   sim.model().ComputeForces(params, sim.rest_shape(), zero, forces);
   for (int i = 0; i < mesh.NumNodes(); ++i) {
-    if (!sim.clamped()[i]) EXPECT_LT(forces[i].norm(), 1e-9) << "node " << i;
+    if (!sim.clamped()[i]) {
+      EXPECT_LT(forces[i].norm(), 1e-9) << "node " << i;
+    }
   }
   sim.model().ComputeForces(params, mesh.rest_positions, zero, forces);
   EXPECT_GT(AreaMean(mesh, forces).x(), 0.0);

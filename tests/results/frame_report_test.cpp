@@ -47,6 +47,18 @@ TEST(FrameReport, MarksFailedAndUnsimulatedFramesAndKeepsTheReasonIntact) {
   EXPECT_EQ(rows[5][0], "4");
 }
 
+TEST(FrameReport, RecordingDifferenceHasOneRowPerFrame) {
+  RecordingDifference d;
+  d.frames = {FrameDifference{0, 0, 0, 450, 450, 1.0}, FrameDifference{30, 12, 18, 450, 456, 0.9375}};
+  const auto path = testing::ScratchDir("report") / "difference.csv";
+  WriteRecordingDifferenceCsv(path, d);
+  const Rows rows = testing::ParseCsvFile(path);
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"frame", "xor", "only_a", "only_b", "a", "b", "iou"}));
+  EXPECT_EQ(rows[1], (std::vector<std::string>{"0", "0", "0", "0", "450", "450", "1.000000"}));
+  EXPECT_EQ(rows[2], (std::vector<std::string>{"1", "30", "12", "18", "450", "456", "0.937500"}));
+}
+
 TEST(FrameReport, UnwritablePathIsNamed) {
   EvaluationResult result;
   try {

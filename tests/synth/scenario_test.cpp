@@ -99,6 +99,32 @@ TEST(Scenario, FullFileRoundTrips) {
   EXPECT_EQ(back.effects.viscoelastic->relaxation_time_s, 2.0);
 }
 
+TEST(Scenario, WithoutEffectsSwitchesEveryEffectOffAndKeepsTheRest) {
+  const Scenario s = ParseScenario(kFullPush, "full.yaml");
+  const Scenario twin = WithoutEffects(s);
+  EXPECT_TRUE(twin.effects.EnabledNames().empty());
+  // Everything else, noise seed included, is the scenario's: only the
+  // effects differ between the two recordings.
+  Scenario expected = s;
+  expected.effects = Effects{};
+  expected.notes = twin.notes;
+  EXPECT_EQ(ScenarioToYaml(twin), ScenarioToYaml(expected));
+  EXPECT_NE(twin.notes.find("plasticity"), std::string::npos) << twin.notes;
+  EXPECT_NE(twin.notes.find("strong_friction"), std::string::npos) << twin.notes;
+  std::string error;
+  EXPECT_TRUE(twin.IsValid(&error)) << error;
+}
+
+TEST(Scenario, WithoutEffectsKeepsTheGravityAHangNeeds) {
+  Scenario hang = DefaultScenario(ScenarioKind::kHang);
+  hang.effects.viscoelastic = ViscoelasticEffect{};
+  const Scenario twin = WithoutEffects(hang);
+  EXPECT_EQ(twin.effects.EnabledNames(), std::vector<std::string>{"inertia_gravity"});
+  std::string error;
+  EXPECT_TRUE(twin.IsValid(&error)) << error;
+  EXPECT_NE(twin.notes.find("viscoelastic"), std::string::npos) << twin.notes;
+}
+
 TEST(Scenario, LoadScenarioReadsAFileAndNamesAMissingOne) {
   const auto dir = testing::ScratchDir("scenario_load");
   std::ofstream(dir / "s.yaml") << kFullPush;

@@ -4,8 +4,12 @@
 // Columns: frame, xor, missed, extra, iou, status, reason. `status` is "ok"
 // for a scored frame, "failed" for the frame at which the simulation failed
 // (with the reason) and "not_simulated" for the frames after it.
+//
+// The per-frame difference of two recordings (`calib compare`) likewise:
+// frame, xor, only_a, only_b, a, b, iou.
 
 #include "calib/evaluator/evaluation.h"
+#include "calib/evaluator/recording_compare.h"
 
 #include <filesystem>
 
@@ -15,5 +19,10 @@ namespace calib {
 /// std::runtime_error naming the path when it cannot be written.
 void WriteFrameReportCsv(const std::filesystem::path& path, const EvaluationResult& result,
                          int num_frames);
+
+/// Writes the per-frame difference of two recordings. Throws
+/// std::runtime_error naming the path when it cannot be written.
+void WriteRecordingDifferenceCsv(const std::filesystem::path& path,
+                                 const RecordingDifference& difference);
 
 }  // namespace calib

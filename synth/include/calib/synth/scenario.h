@@ -208,6 +208,12 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& source);
 /// naming the file when it cannot be read.
 Scenario LoadScenario(const std::filesystem::path& path);
 
+/// The same scenario (scene, material, camera, noise, seed) with every
+/// effect switched off, except the inertia and gravity a hang needs: the
+/// twin whose recording, compared with the scenario's (`calib compare`),
+/// gives the effects' footprint in pixels. The notes say so.
+Scenario WithoutEffects(const Scenario& scenario);
+
 /// The scenario as YAML that ParseScenario reads back to an equal scenario
 /// (every key written, numbers with full precision).
 std::string ScenarioToYaml(const Scenario& scenario);

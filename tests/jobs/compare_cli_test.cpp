@@ -1,0 +1,67 @@
+// `calib compare` on the bundled recordings: a recording against itself
+// differs nowhere; against another take the printed sum is the per-frame
+// CSV's; recordings that cannot be compared are named, exit status 2.
+
+#include "support/csv_support.h"
+#include "support/process_support.h"
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+namespace calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kCalib = CALIB_EXE;
+const fs::path kExamples = fs::path(CALIB_SOURCE_DIR) / "examples";
+
+#define EXPECT_HAS(text, part) \
+  EXPECT_NE(std::string(text).find(part), std::string::npos) << "output: " << (text)
+
+TEST(CompareCli, ARecordingAgainstItselfDiffersNowhere) {
+  const fs::path dir = testing::ScratchDir("compare_cli_self");
+  const auto r = testing::RunProcess(
+      {kCalib, "compare", (kExamples / "push_centre").string(), (kExamples / "push_centre").string(),
+       "--cache-dir", (dir / "cache").string()},
+      dir);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_HAS(r.out, "difference (XOR pixels summed over frames): 0\n");
+  EXPECT_HAS(r.out, "mean IoU: 1.0000 over 330 frames");
+}
+
+TEST(CompareCli, ThePrintedSumIsThePerFrameCsvs) {
+  const fs::path dir = testing::ScratchDir("compare_cli_takes");
+  const fs::path csv = dir / "difference.csv";
+  const auto r = testing::RunProcess(
+      {kCalib, "compare", (kExamples / "push_centre").string(), (kExamples / "push_offset").string(),
+       "--csv", csv.string(), "--no-cache"},
+      dir);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const testing::CsvRows rows = testing::ParseCsvFile(csv);
+  ASSERT_EQ(rows.size(), 331u);
+  int64_t sum = 0;
+  for (size_t i = 1; i < rows.size(); ++i) {
+    EXPECT_EQ(std::stoll(rows[i][1]), std::stoll(rows[i][2]) + std::stoll(rows[i][3])) << "row " << i;
+    sum += std::stoll(rows[i][1]);
+  }
+  EXPECT_GT(sum, 0);
+  EXPECT_HAS(r.out, "difference (XOR pixels summed over frames): " + std::to_string(sum) + "\n");
+}
+
+TEST(CompareCli, RecordingsOfDifferentLengthsAreNamed) {
+  const fs::path dir = testing::ScratchDir("compare_cli_lengths");
+  const fs::path real = testing::RealRecordingsDir() / "concave_1";
+  if (!fs::exists(real / "recording.json")) GTEST_FAIL() << "missing real recording " << real;
+  const auto r = testing::RunProcess(
+      {kCalib, "compare", (kExamples / "push_centre").string(), real.string(), "--no-cache"}, dir);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_HAS(r.err, "push_centre (330 frames)");
+  EXPECT_HAS(r.err, "concave_1 (1074 frames)");
+}
+
+}  // namespace
+}  // namespace calib
