@@ -146,18 +146,13 @@ TEST(DiscContact, ANarrowFingerNeverPokesThroughTheOutline) {
 
 double WorstClearance(bool outline_contact) {
   const Mesh mesh = MakeGridMesh(6, 4, 20.0, Vec2(100, 100));  // sides 100 x 60
-  Scene scene;
-  scene.frame_time_s = 1.0 / 30.0;
-  scene.num_frames = 30;
-  scene.num_obstacles = 1;
-  scene.force_obstacle = 0;
-  for (int f = 0; f < scene.num_frames; ++f) {
-    // Radius 4 < half the 20 px spacing; enters the top side at x = 150, midway
-    // between the nodes at 140 and 160, 12 px deep by the last frame.
-    const double depth = 12.0 * f / (scene.num_frames - 1);
-    scene.obstacle_discs.push_back({Vec2(150.0, 100.0 - 4.0 + depth), 4.0});
-    scene.forces.push_back(Vec2::Zero());
-  }
+  // Radius 4 < half the 20 px spacing; enters the top side at x = 150, midway
+  // between the nodes at 140 and 160, 12 px deep by the last frame.
+  constexpr int kFrames = 30;
+  const Scene scene = calib::testing::OneDiscScene(
+      kFrames, 30.0,
+      [](int f) { return Disc{Vec2(150.0, 100.0 - 4.0 + 12.0 * f / (kFrames - 1)), 4.0}; },
+      [](int) { return Vec2::Zero(); });
   SimulationOptions options;
   options.outline_contact = outline_contact;
   Simulator sim(mesh, scene, options);

@@ -20,27 +20,15 @@ namespace calib {
 namespace {
 
 using calib::testing::MakeGridMesh;
+using calib::testing::OneDiscScene;
+using calib::testing::StillScene;
 
 ModelParameters Base() { return calib::testing::StiffTestParameters(); }
-
-Scene StillScene(int frames, double fps = 30.0) {
-  Scene scene;
-  scene.frame_time_s = 1.0 / fps;
-  scene.num_frames = frames;
-  return scene;
-}
 
 // A sensor-only push: the force obstacle stands far from the body (never
 // touching it), so the measured force alone acts, on the node nearest to it.
 Scene ForceOnlyScene(int frames, const Vec2& finger, const std::function<Vec2(int)>& force) {
-  Scene scene = StillScene(frames);
-  scene.num_obstacles = 1;
-  scene.force_obstacle = 0;
-  for (int f = 0; f < frames; ++f) {
-    scene.obstacle_discs.push_back({finger, 2.0});
-    scene.forces.push_back(force(f));
-  }
-  return scene;
+  return OneDiscScene(frames, 30.0, [&](int) { return Disc{finger, 2.0}; }, force);
 }
 
 // A 8 x 4 patch (80 x 40 px at (100, 100)) with its bottom row clamped, dented
@@ -49,11 +37,8 @@ Scene ForceOnlyScene(int frames, const Vec2& finger, const std::function<Vec2(in
 Mesh ClampedPatch() { return MakeGridMesh(8, 4, 10.0, Vec2(100, 100)); }
 
 Scene DentScene(int frames, double depth_px) {
-  Scene scene = StillScene(frames);
-  scene.num_obstacles = 1;
-  scene.clamps.push_back({99.0, 139.0, 82.0, 2.0});
   const double radius = 8.0, start_y = 100.0 - radius - 2.0;
-  for (int f = 0; f < frames; ++f) {
+  Scene scene = OneDiscScene(frames, 30.0, [&](int f) {
     double travel = 0.0;
     if (f < 20)
       travel = f / 20.0;
@@ -61,8 +46,9 @@ Scene DentScene(int frames, double depth_px) {
       travel = 1.0;
     else if (f < 50)
       travel = 1.0 - (f - 40) / 10.0;
-    scene.obstacle_discs.push_back({Vec2(140.0, start_y + travel * (depth_px + 2.0)), radius});
-  }
+    return Disc{Vec2(140.0, start_y + travel * (depth_px + 2.0)), radius};
+  });
+  scene.clamps.push_back({99.0, 139.0, 82.0, 2.0});
   return scene;
 }
 

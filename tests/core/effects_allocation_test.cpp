@@ -29,16 +29,9 @@ namespace {
 
 TEST(EffectsAllocation, NoAllocationPerSubstepWithEveryEffect) {
   const Mesh mesh = calib::testing::MakeGridMesh(8, 4, 10.0, Vec2(100, 100));
-  Scene scene;
-  scene.frame_time_s = 1.0 / 30.0;
-  scene.num_frames = 40;
-  scene.num_obstacles = 1;
-  scene.force_obstacle = 0;
-  for (int f = 0; f < scene.num_frames; ++f) {
-    const double depth = std::min(1.0, f / 24.0) * 15.0;
-    scene.obstacle_discs.push_back({Vec2(92.0 + depth, 120.0), 8.0});
-    scene.forces.push_back(Vec2(1.0, 0.0));
-  }
+  const Scene scene = calib::testing::OneDiscScene(
+      40, 30.0, [](int f) { return Disc{Vec2(92.0 + std::min(1.0, f / 24.0) * 15.0, 120.0), 8.0}; },
+      [](int) { return Vec2(1.0, 0.0); });
   ModelDefinition model{{"inertia", "table_friction", "plasticity", "uneven_stiffness",
                          "strain_stiffening", "viscoelastic", "push_relaxation"}};
   Simulator sim(mesh, scene, {}, model);

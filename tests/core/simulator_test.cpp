@@ -18,6 +18,8 @@ namespace calib {
 namespace {
 
 using calib::testing::MakeGridMesh;
+using calib::testing::OneDiscScene;
+using calib::testing::StillScene;
 
 ModelParameters Stiff() { return calib::testing::StiffTestParameters(); }
 
@@ -100,13 +102,6 @@ TEST(Model, ZeroForceAtRestAndRigidMotionKeepsEnergy) {
   const double c = std::cos(1.1), s = std::sin(1.1);
   for (Vec2& q : x) q = Vec2(c * q.x() - s * q.y(), s * q.x() + c * q.y()) + Vec2(-7.5, 300.25);
   EXPECT_NEAR(model.Energy(p, x), e, 1e-9 * std::max(1.0, e));
-}
-
-Scene StillScene(int frames, double fps = 30.0) {
-  Scene scene;
-  scene.frame_time_s = 1.0 / fps;
-  scene.num_frames = frames;
-  return scene;
 }
 
 TEST(Simulator, RestStaysAtRest) {
@@ -264,13 +259,8 @@ TEST(Simulator, IdenticalInputGivesBitIdenticalStates) {
 // it at the constant speed F / (N m); Verlet accelerates it at F / (N m).
 TEST(Simulator, TranslationShareMovesTheWholeBody) {
   const Mesh mesh = MakeGridMesh(3, 2, 10.0, Vec2(100, 100));
-  Scene scene = StillScene(11, 10.0);
-  scene.num_obstacles = 1;
-  scene.force_obstacle = 0;
-  for (int f = 0; f < scene.num_frames; ++f) {
-    scene.obstacle_discs.push_back({Vec2(0, 0), 1.0});
-    scene.forces.push_back(Vec2(3.0, -1.5));
-  }
+  const Scene scene = OneDiscScene(
+      11, 10.0, [](int) { return Disc{Vec2(0, 0), 1.0}; }, [](int) { return Vec2(3.0, -1.5); });
   ModelParameters p = Stiff();
   p.translation = 1.0;
   p.mass = 0.2;
@@ -305,12 +295,9 @@ TEST(Simulator, TranslationShareMovesTheWholeBody) {
 
 TEST(Simulator, PushWithoutTranslationActsOnTheNearestNode) {
   const Mesh mesh = MakeGridMesh(4, 4, 10.0, Vec2(100, 100));
-  Scene scene = StillScene(2);
-  scene.num_obstacles = 1;
-  scene.force_obstacle = 0;
   // Finger just off the top-left corner (node 0); it does not touch the mesh.
-  scene.obstacle_discs = {{Vec2(95, 95), 2.0}, {Vec2(95, 95), 2.0}};
-  scene.forces = {Vec2(1.0, 0.0), Vec2(1.0, 0.0)};
+  const Scene scene = OneDiscScene(
+      2, 30.0, [](int) { return Disc{Vec2(95, 95), 2.0}; }, [](int) { return Vec2(1.0, 0.0); });
   ModelParameters p = Stiff();
   p.k_damping = 0.0;
   SimulationOptions options;

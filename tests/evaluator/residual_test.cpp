@@ -18,6 +18,8 @@
 namespace calib {
 namespace {
 
+using calib::testing::StillScene;
+
 constexpr double kPi = std::numbers::pi;
 
 // Mask of the pixels whose centres lie inside [x0, x1) x [y0, y1).
@@ -43,13 +45,6 @@ BitMask EllipseMask(int width, int height, const Vec2& c, double a, double b, do
 }
 
 // A scene of `frames` frames at `fps` without obstacles.
-Scene EmptyScene(int frames, double fps) {
-  Scene s;
-  s.frame_time_s = 1.0 / fps;
-  s.num_frames = frames;
-  return s;
-}
-
 std::vector<Vec2> Shifted(const std::vector<Vec2>& p, const Vec2& d) {
   std::vector<Vec2> out = p;
   for (Vec2& q : out) q += d;
@@ -286,7 +281,7 @@ TEST(ResidualOptions, InvalidFieldsAreNamed) {
 
 struct ShiftCase {
   Mesh mesh = testing::MakeGridMesh(10, 6, 10.0, Vec2(100.0, 100.0));  // [100,200) x [100,160)
-  Scene scene = EmptyScene(1, 30.0);
+  Scene scene = StillScene(1, 30.0);
   std::vector<BitMask> object = {RectMask(320, 240, 100, 100, 200, 160)};
 };
 
@@ -384,7 +379,7 @@ TEST(ResidualAnalyzer, RejectsFramesOutOfOrderAndBadShapes) {
   BitMask mesh_mask(320, 240);
   EXPECT_THROW(analyzer.AddFrame(1, c.mesh.rest_positions, mesh_mask), std::invalid_argument);
   EXPECT_THROW(analyzer.AddFrame(0, c.mesh.rest_positions, BitMask(10, 10)), std::invalid_argument);
-  EXPECT_THROW(ResidualAnalyzer(c.mesh, EmptyScene(2, 30.0), c.object, {}, "x"),
+  EXPECT_THROW(ResidualAnalyzer(c.mesh, StillScene(2, 30.0), c.object, {}, "x"),
                std::invalid_argument);
   ResidualAnalyzer empty(c.mesh, c.scene, c.object, {}, "x");
   const ResidualAnalysis a = empty.Finish();
@@ -402,7 +397,7 @@ struct SwingCase {
   Scene scene;
   std::vector<BitMask> object;
 
-  SwingCase(double period_s, double fps, int frames) : scene(EmptyScene(frames, fps)) {
+  SwingCase(double period_s, double fps, int frames) : scene(StillScene(frames, fps)) {
     for (int f = 0; f < frames; ++f) {
       const int dx = static_cast<int>(std::lround(12.0 * std::sin(2 * kPi * f / fps / period_s)));
       object.push_back(RectMask(320, 200, 140 + dx, 40, 180 + dx, 160));
@@ -445,7 +440,7 @@ struct DentCase {
     const double fps = 30.0;
     const int frames = 100;
     const double radius = 25.0, depth = 20.0;
-    scene = EmptyScene(frames, fps);
+    scene = StillScene(frames, fps);
     scene.num_obstacles = 1;
     scene.force_obstacle = 0;
     double hold_depth = 0.0;

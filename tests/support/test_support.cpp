@@ -15,6 +15,25 @@ std::filesystem::path SharedDir() {
   return std::filesystem::path(CALIB_SOURCE_DIR) / ".." / "shared";
 }
 
+Scene StillScene(int frames, double fps) {
+  Scene scene;
+  scene.frame_time_s = 1.0 / fps;
+  scene.num_frames = frames;
+  return scene;
+}
+
+Scene OneDiscScene(int frames, double fps, const std::function<Disc(int)>& disc,
+                   const std::function<Vec2(int)>& force) {
+  Scene scene = StillScene(frames, fps);
+  scene.num_obstacles = 1;
+  if (force) scene.force_obstacle = 0;
+  for (int f = 0; f < frames; ++f) {
+    scene.obstacle_discs.push_back(disc(f));
+    if (force) scene.forces.push_back(force(f));
+  }
+  return scene;
+}
+
 std::filesystem::path RealRecordingsDir() { return SharedDir() / "data" / "real"; }
 
 std::filesystem::path ScratchDir(const std::string& name) {

@@ -19,8 +19,10 @@ std::filesystem::path ScratchDir(const std::string& name);
 
 #include "calib/core/mesh.h"
 #include "calib/core/parameters.h"
+#include "calib/core/scene.h"
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace calib::testing {
@@ -33,6 +35,14 @@ Mesh MakeGridMesh(int nx, int ny, double spacing, const Vec2& origin = Vec2::Zer
 /// Stiff, damped base parameters for small test meshes (settle in a few
 /// hundred substeps), with the given translation share.
 ModelParameters StiffTestParameters(double translation = 0.0);
+
+/// A scene of `frames` frames at `fps` with no obstacle, clamp or force.
+Scene StillScene(int frames, double fps = 30.0);
+
+/// The same with one obstacle at disc(f) in frame f; with `force`, the force
+/// sensor is on that obstacle and reads force(f), without it there is none.
+Scene OneDiscScene(int frames, double fps, const std::function<Disc(int)>& disc,
+                   const std::function<Vec2(int)>& force = {});
 
 /// `base` with every point moved by up to `amount` in x and y, drawn from
 /// `seed` the same way on every standard library.
