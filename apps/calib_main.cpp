@@ -49,6 +49,9 @@ void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* inte
       ->capture_default_str();
   cmd->add_option("--integrator", *integrator, "first_order (paper eq. 10) or verlet (eq. 8)")
       ->capture_default_str();
+  cmd->add_flag("--outline-contact", settings->simulation.outline_contact,
+                "obstacles keep out of the outline's edges, not only its nodes (job spec "
+                "model.outline_contact)");
   AddCacheOptions(cmd, cache_dir, no_cache);
   AddEffectsOption(cmd, settings);
 }

@@ -1,7 +1,10 @@
-// `calib compare` on the bundled recordings: a recording against itself
-// differs nowhere; against another take the printed sum is the per-frame
-// CSV's; recordings that cannot be compared are named, exit status 2.
+// The recording commands on the bundled recordings. `calib compare`: a
+// recording against itself differs nowhere; against another take the
+// printed sum is the per-frame CSV's; recordings that cannot be compared are
+// named, exit status 2. `calib score --outline-contact` scores as a job with
+// model.outline_contact does.
 
+#include "calib/jobs/commands.h"
 #include "support/csv_support.h"
 #include "support/process_support.h"
 #include "support/test_support.h"
@@ -61,6 +64,37 @@ TEST(CompareCli, RecordingsOfDifferentLengthsAreNamed) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_HAS(r.err, "push_centre (330 frames)");
   EXPECT_HAS(r.err, "concave_1 (1074 frames)");
+}
+
+// The score's first line, "score (XOR pixels summed over frames): N".
+int64_t PrintedScore(const std::string& out) {
+  const std::string key = "score (XOR pixels summed over frames): ";
+  const size_t at = out.find(key);
+  EXPECT_NE(at, std::string::npos) << out;
+  return at == std::string::npos ? -1 : std::stoll(out.substr(at + key.size()));
+}
+
+TEST(ScoreCli, OutlineContactReachesTheSimulation) {
+  const fs::path dir = testing::ScratchDir("score_cli_contact");
+  const fs::path recording = kExamples / "push_centre";
+  const fs::path params = kExamples / "params_push.json";
+  const std::string cache = (dir / "cache").string();
+  const auto node = testing::RunProcess(
+      {kCalib, "score", recording.string(), "--params", params.string(), "--cache-dir", cache}, dir);
+  const auto outline = testing::RunProcess({kCalib, "score", recording.string(), "--params",
+                                            params.string(), "--cache-dir", cache,
+                                            "--outline-contact"},
+                                           dir);
+  ASSERT_EQ(node.exit_code, 0) << node.err;
+  ASSERT_EQ(outline.exit_code, 0) << outline.err;
+  CommandSettings settings;
+  settings.preparation.cache_dir = dir / "cache";
+  settings.simulation.outline_contact = true;
+  const EvaluationResult expected = RunScore(recording, params, settings);
+  EXPECT_EQ(PrintedScore(outline.out), expected.xor_sum);
+  // The 7 px finger and the pencil slip between the 20 px mesh's nodes:
+  // keeping them out of the edges changes the score.
+  EXPECT_NE(PrintedScore(node.out), PrintedScore(outline.out));
 }
 
 }  // namespace
