@@ -34,12 +34,13 @@ void AddEffectsOption(CLI::App* cmd, CommandSettings* settings) {
       ->delimiter(',');
 }
 
-// Options shared by every subcommand that meshes and simulates a recording.
+// Options of every subcommand that segments a recording.
 void AddCacheOptions(CLI::App* cmd, std::string* cache_dir, bool* no_cache) {
   cmd->add_option("--cache-dir", *cache_dir, "segmentation cache folder")->capture_default_str();
   cmd->add_flag("--no-cache", *no_cache, "do not read or write the segmentation cache");
 }
 
+// Options shared by every subcommand that meshes and simulates a recording.
 void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* integrator,
                      std::string* cache_dir, bool* no_cache) {
   cmd->add_option("--edge", settings->preparation.mesher.edge_length_px,
