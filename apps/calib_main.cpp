@@ -48,7 +48,9 @@ void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* inte
       ->capture_default_str();
   cmd->add_option("--substeps", settings->simulation.substeps, "integration substeps per frame")
       ->capture_default_str();
-  cmd->add_option("--integrator", *integrator, "first_order (paper eq. 10) or verlet (eq. 8)")
+  cmd->add_option("--integrator", *integrator,
+                  "first_order (paper eq. 10), verlet (eq. 8) or implicit_first_order (eq. 10 "
+                  "implicit in the springs: stable at any stiffness)")
       ->capture_default_str();
   cmd->add_flag("--outline-contact", settings->simulation.outline_contact,
                 "obstacles keep out of the outline's edges, not only its nodes (job spec "

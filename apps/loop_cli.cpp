@@ -35,6 +35,7 @@ struct LoopCli {
   std::string cache_dir;
   bool no_cache = false;
   bool outline_contact = kDefaults.simulation.outline_contact;
+  std::string integrator = calib::ToString(kDefaults.simulation.integrator);
   bool no_html = false;
   bool quiet = false;
 };
@@ -98,6 +99,11 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
   cmd->add_flag("--outline-contact", cli->outline_contact,
                 "obstacles keep out of the outline's edges, not only its nodes (job spec "
                 "model.outline_contact)");
+  cmd->add_option("--integrator", cli->integrator,
+                  "first_order (paper eq. 10) or implicit_first_order (the same, implicit in the "
+                  "springs: stable at any stiffness, docs/loop.md)")
+      ->check(CLI::IsMember({"first_order", "implicit_first_order"}))
+      ->capture_default_str();
   cmd->add_option("--cache-dir", cli->cache_dir, "segmentation cache folder");
   cmd->add_flag("--no-cache", cli->no_cache, "do not read or write the segmentation cache");
   cmd->add_flag("--no-html", cli->no_html, "write report.json only");
@@ -124,6 +130,7 @@ std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) 
   options.restarts = cli.restarts;
   options.write_html = !cli.no_html;
   options.simulation.outline_contact = cli.outline_contact;
+  options.simulation.integrator = IntegratorKindFromString(cli.integrator);
   if (cli.no_cache) {
     options.preparation.cache_dir.clear();
   } else if (!cli.cache_dir.empty()) {

@@ -27,9 +27,11 @@ void SetMeshCounters(benchmark::State& state) {
 
 // Argument: 0 the paper's contact (obstacles push nodes), 1 outline
 // contact (obstacles also push the boundary edges, constraints.h).
+// Arguments: outline contact (0 / 1), implicit step (0 / 1).
 void BM_FullEvaluation(benchmark::State& state) {
   SimulationOptions options;
   options.outline_contact = state.range(0) != 0;
+  if (state.range(1) != 0) options.integrator = IntegratorKind::kImplicitFirstOrder;
   Evaluator evaluator(Scene(), options);
   const ModelParameters params = ReferenceParameters();
   for (auto _ : state) {
@@ -41,12 +43,15 @@ void BM_FullEvaluation(benchmark::State& state) {
   state.counters["frames"] = Scene().scene.num_frames;
 }
 BENCHMARK(BM_FullEvaluation)
-    ->ArgName("outline_contact")
-    ->DenseRange(0, 1)
+    ->ArgNames({"outline_contact", "implicit"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
     ->Unit(benchmark::kMillisecond);
 
+// Argument: implicit step (0 / 1).
 void BM_Substep(benchmark::State& state) {
-  Simulator simulator(Scene().mesh, Scene().scene, SimulationOptions{});
+  SimulationOptions options;
+  if (state.range(0) != 0) options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator simulator(Scene().mesh, Scene().scene, options);
   simulator.Reset(ReferenceParameters());
   // Move to a loaded frame so the finger is in contact.
   for (int f = 0; f < 100; ++f) simulator.Advance();
@@ -56,7 +61,22 @@ void BM_Substep(benchmark::State& state) {
   }
   SetMeshCounters(state);
 }
-BENCHMARK(BM_Substep)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Substep)->ArgName("implicit")->DenseRange(0, 1)->Unit(benchmark::kMicrosecond);
+
+// What the implicit step adds per candidate: the matrix's factorisation in
+// Reset (the unit matrices are assembled once, in the constructor).
+void BM_ImplicitReset(benchmark::State& state) {
+  SimulationOptions options;
+  options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator simulator(Scene().mesh, Scene().scene, options);
+  const ModelParameters params = ReferenceParameters();
+  for (auto _ : state) {
+    simulator.Reset(params);
+    benchmark::DoNotOptimize(simulator.positions().data());
+  }
+  SetMeshCounters(state);
+}
+BENCHMARK(BM_ImplicitReset)->Unit(benchmark::kMicrosecond);
 
 // The internal forces alone, with a workspace as the simulator keeps one
 // (no allocation per call), on the kernel kAuto picks.

@@ -8,6 +8,7 @@ std::string ToString(IntegratorKind kind) {
   switch (kind) {
     case IntegratorKind::kFirstOrder: return "first_order";
     case IntegratorKind::kVerlet: return "verlet";
+    case IntegratorKind::kImplicitFirstOrder: return "implicit_first_order";
   }
   return "unknown";
 }
@@ -15,7 +16,9 @@ std::string ToString(IntegratorKind kind) {
 IntegratorKind IntegratorKindFromString(const std::string& name) {
   if (name == "first_order") return IntegratorKind::kFirstOrder;
   if (name == "verlet") return IntegratorKind::kVerlet;
-  throw std::invalid_argument("integrator '" + name + "' is unknown; expected first_order or verlet");
+  if (name == "implicit_first_order") return IntegratorKind::kImplicitFirstOrder;
+  throw std::invalid_argument("integrator '" + name +
+                              "' is unknown; expected first_order, verlet or implicit_first_order");
 }
 
 void StepFirstOrder(double h_over_m, std::span<const Vec2> f, std::span<const double> inverse_weight,

@@ -101,6 +101,9 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
     if (hooks.dynamics) claim(dynamics_effect_, "the dynamics");
     effects_.push_back(std::move(effect));
   }
+  if (options.integrator == IntegratorKind::kImplicitFirstOrder) {
+    implicit_step_ = std::make_unique<ImplicitFirstOrderStep>(model_, inverse_weight_);
+  }
 }
 
 void Simulator::Reset(const ModelParameters& params) {
@@ -113,6 +116,18 @@ void Simulator::Reset(const ModelParameters& params) {
   params_ = params;
   second_order_ = false;
   ResetState();
+  ConfigureIntegrator();
+}
+
+void Simulator::ConfigureIntegrator() {
+  implicit_ = implicit_step_ != nullptr && !second_order_;
+  force_params_ = params_;
+  if (!implicit_) return;
+  force_params_.k_damping = 0.0;
+  std::string error;
+  if (!implicit_step_->Configure(params_, scene_.frame_time_s / options_.substeps, &error)) {
+    Fail(std::move(error));
+  }
 }
 
 void Simulator::Reset(const ParameterValues& values) {
@@ -131,6 +146,7 @@ void Simulator::Reset(const ParameterValues& values) {
     }
   }
   ResetState();
+  ConfigureIntegrator();
 }
 
 void Simulator::StartFromObservedMotion() {
@@ -185,7 +201,7 @@ bool Simulator::Substep(int substep) {
   const double h = scene_.frame_time_s / options_.substeps;
   const double alpha0 = static_cast<double>(substep) / options_.substeps;
 
-  model_.ComputeForces(params_, x_, v_, f_, force_workspace_);
+  model_.ComputeForces(force_params_, x_, v_, f_, force_workspace_);
   for (const EffectTerm* effect : force_effects_) effect->AddForces(x_, v_, f_, nullptr);
 
   // The measured push: on the node nearest the force obstacle, except the
@@ -224,6 +240,9 @@ bool Simulator::Substep(int substep) {
   if (second_order_) {
     std::copy(x_.begin(), x_.end(), x_prev_.begin());
     StepDampedSecondOrder(h, second_order_damping_per_s_, params_.mass);
+  } else if (implicit_) {
+    std::copy(x_.begin(), x_.end(), x_prev_.begin());
+    implicit_step_->Step(f_, x_);
   } else if (options_.integrator == IntegratorKind::kFirstOrder) {
     std::copy(x_.begin(), x_.end(), x_prev_.begin());
     StepFirstOrder(h / params_.mass, f_, inverse_weight_, x_);

@@ -112,10 +112,11 @@ std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::strin
   // ratios matter, so the mass is fixed and the stiffnesses are searched on
   // wide log scales (a wider box than the bundled example job's: effects
   // move the best stiffnesses).
+  const double stiff = scales.integrator == IntegratorKind::kImplicitFirstOrder ? 100.0 : 1.0;
   std::vector<ParameterSetting> out = {
-      Searched("k_D", 10, 1e5, kLog),      Searched("k_d", 1e-3, 100, kLog),
-      Searched("k_A", 0.1, 1e5, kLog),     Searched("k_phi", 0.01, 1e4, kLog),
-      Fixed("mass", 0.2),                  Searched("tau", 0, 0.5, kLinear)};
+      Searched("k_D", 10, 1e5 * stiff, kLog),  Searched("k_d", 1e-3, 100 * stiff, kLog),
+      Searched("k_A", 0.1, 1e5 * stiff, kLog), Searched("k_phi", 0.01, 1e4 * stiff, kLog),
+      Fixed("mass", 0.2),                      Searched("tau", 0, 0.5, kLinear)};
   const double force = Finite(scales.peak_force, 1.0);
   const double fps = Finite(scales.fps, 30.0);
   const double duration = Finite(scales.duration_s, 1.0);
@@ -423,6 +424,7 @@ void Loop::Prepare() {
       scales_.fps = rec.fps;
       scales_.mm_per_px = rec.mm_per_px.value_or(0.0);
     }
+    scales_.integrator = o_.simulation.integrator;
     first = false;
   }
   for (const LoopRecording& r : recs_) {

@@ -27,11 +27,34 @@ void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 namespace calib {
 namespace {
 
-TEST(EffectsAllocation, NoAllocationPerSubstepWithEveryEffect) {
-  const Mesh mesh = calib::testing::MakeGridMesh(8, 4, 10.0, Vec2(100, 100));
-  const Scene scene = calib::testing::OneDiscScene(
+Scene PushedPatchScene() {
+  return calib::testing::OneDiscScene(
       40, 30.0, [](int f) { return Disc{Vec2(92.0 + std::min(1.0, f / 24.0) * 15.0, 120.0), 8.0}; },
       [](int) { return Vec2(1.0, 0.0); });
+}
+
+// The parameters of every effect but inertia's.
+ParameterValues FirstOrderEffectValues() {
+  return {{"friction_force", 0.3},     {"plastic_yield_strain", 0.02}, {"plastic_rate_per_s", 20.0},
+          {"uneven_gradient", 0.5},    {"uneven_angle_deg", 0.0},      {"stiffening_k3", 300.0},
+          {"visco_share", 0.3},        {"visco_time_s", 0.5},          {"push_friction_force", 0.4}};
+}
+
+// Frames run with the allocation counter on; expects a finished run.
+int64_t AllocationsWhileRunning(Simulator& sim, int expected_frames) {
+  g_allocations = 0;
+  g_counting = true;
+  int frames = 0;
+  while (sim.Advance()) ++frames;
+  g_counting = false;
+  EXPECT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
+  EXPECT_EQ(frames, expected_frames);
+  return g_allocations.load();
+}
+
+TEST(EffectsAllocation, NoAllocationPerSubstepWithEveryEffect) {
+  const Mesh mesh = calib::testing::MakeGridMesh(8, 4, 10.0, Vec2(100, 100));
+  const Scene scene = PushedPatchScene();
   ModelDefinition model{{"inertia", "table_friction", "plasticity", "uneven_stiffness",
                          "strain_stiffening", "viscoelastic", "push_relaxation"}};
   Simulator sim(mesh, scene, {}, model);
@@ -43,27 +66,28 @@ TEST(EffectsAllocation, NoAllocationPerSubstepWithEveryEffect) {
   base.mass = 0.02;
   base.translation = 0.2;
   ParameterValues values = base.ToValues();
-  values.insert({{"inertia_damping_per_s", 3.0},
-                 {"gravity_px_s2", 40.0},
-                 {"gravity_angle_deg", 90.0},
-                 {"friction_force", 0.3},
-                 {"plastic_yield_strain", 0.02},
-                 {"plastic_rate_per_s", 20.0},
-                 {"uneven_gradient", 0.5},
-                 {"uneven_angle_deg", 0.0},
-                 {"stiffening_k3", 300.0},
-                 {"visco_share", 0.3},
-                 {"visco_time_s", 0.5},
-                 {"push_friction_force", 0.4}});
+  values.insert({{"inertia_damping_per_s", 3.0}, {"gravity_px_s2", 40.0}, {"gravity_angle_deg", 90.0}});
+  const ParameterValues effects = FirstOrderEffectValues();
+  values.insert(effects.begin(), effects.end());
   sim.Reset(values);
-  g_allocations = 0;
-  g_counting = true;
-  int frames = 0;
-  while (sim.Advance()) ++frames;
-  g_counting = false;
-  EXPECT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
-  EXPECT_EQ(frames, scene.num_frames - 1);
-  EXPECT_EQ(g_allocations.load(), 0) << "allocations during " << frames << " frames";
+  EXPECT_EQ(AllocationsWhileRunning(sim, scene.num_frames - 1), 0);
+}
+
+TEST(EffectsAllocation, NoAllocationPerSubstepWithTheImplicitStep) {
+  // Every effect but inertia (which owns the dynamics): the implicit step's
+  // solve with its factor, and the effects beside it.
+  const Mesh mesh = calib::testing::MakeGridMesh(8, 4, 10.0, Vec2(100, 100));
+  const Scene scene = PushedPatchScene();
+  ModelDefinition model{{"table_friction", "plasticity", "uneven_stiffness", "strain_stiffening",
+                         "viscoelastic", "push_relaxation"}};
+  SimulationOptions options;
+  options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator sim(mesh, scene, options, model);
+  ParameterValues values = calib::testing::StiffTestParameters(0.2).ToValues();
+  const ParameterValues effects = FirstOrderEffectValues();
+  values.insert(effects.begin(), effects.end());
+  sim.Reset(values);
+  EXPECT_EQ(AllocationsWhileRunning(sim, scene.num_frames - 1), 0);
 }
 
 }  // namespace

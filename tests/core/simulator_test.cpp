@@ -329,7 +329,8 @@ TEST(SimulationOptions, InvalidFieldIsNamed) {
 }
 
 TEST(Integrator, NamesRoundTripAndUnknownIsNamed) {
-  for (auto kind : {IntegratorKind::kFirstOrder, IntegratorKind::kVerlet}) {
+  for (auto kind : {IntegratorKind::kFirstOrder, IntegratorKind::kVerlet,
+                    IntegratorKind::kImplicitFirstOrder}) {
     EXPECT_EQ(IntegratorKindFromString(ToString(kind)), kind);
   }
   try {

@@ -1,8 +1,9 @@
 // The recording commands on the bundled recordings. `calib compare`: a
 // recording against itself differs nowhere; against another take the
 // printed sum is the per-frame CSV's; recordings that cannot be compared are
-// named, exit status 2. `calib score --outline-contact` scores as a job with
-// model.outline_contact does.
+// named, exit status 2. `calib score --outline-contact` and `--integrator
+// implicit_first_order` score as a job with those settings does; `calib
+// loop --integrator` names a value it cannot use.
 
 #include "calib/jobs/commands.h"
 #include "support/csv_support.h"
@@ -95,6 +96,40 @@ TEST(ScoreCli, OutlineContactReachesTheSimulation) {
   // The 7 px finger and the pencil slip between the 20 px mesh's nodes:
   // keeping them out of the edges changes the score.
   EXPECT_NE(PrintedScore(node.out), PrintedScore(outline.out));
+}
+
+TEST(ScoreCli, ImplicitIntegratorReachesTheSimulation) {
+  const fs::path dir = testing::ScratchDir("score_cli_implicit");
+  const fs::path recording = kExamples / "push_centre";
+  const fs::path params = kExamples / "params_push.json";
+  const std::string cache = (dir / "cache").string();
+  const auto explicit_run = testing::RunProcess(
+      {kCalib, "score", recording.string(), "--params", params.string(), "--cache-dir", cache}, dir);
+  const auto implicit_run =
+      testing::RunProcess({kCalib, "score", recording.string(), "--params", params.string(),
+                           "--cache-dir", cache, "--integrator", "implicit_first_order"},
+                          dir);
+  ASSERT_EQ(explicit_run.exit_code, 0) << explicit_run.err;
+  ASSERT_EQ(implicit_run.exit_code, 0) << implicit_run.err;
+  CommandSettings settings;
+  settings.preparation.cache_dir = dir / "cache";
+  settings.simulation.integrator = IntegratorKind::kImplicitFirstOrder;
+  const EvaluationResult expected = RunScore(recording, params, settings);
+  EXPECT_EQ(PrintedScore(implicit_run.out), expected.xor_sum);
+  EXPECT_NE(PrintedScore(explicit_run.out), PrintedScore(implicit_run.out));
+}
+
+TEST(LoopCli, AnIntegratorItCannotUseIsNamed) {
+  // verlet is second order: the loop's first-order calibrations (and
+  // inertia, which brings its own step) have no use for it.
+  const fs::path dir = testing::ScratchDir("loop_cli_integrator");
+  const auto r = testing::RunProcess({kCalib, "loop", "--train", (kExamples / "push_centre").string(),
+                                      "--out", (dir / "out").string(), "--integrator", "verlet"},
+                                     dir);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_HAS(r.err + r.out, "--integrator");
+  EXPECT_HAS(r.err + r.out, "verlet");
+  EXPECT_FALSE(fs::exists(dir / "out" / "report.json"));
 }
 
 }  // namespace

@@ -313,6 +313,21 @@ TEST(Loop, SearchBoxesCoverEveryEffectAndNeutralValuesLieInThem) {
   EXPECT_THROW(LoopParameterSettings({"levitation"}, scales, {}), std::invalid_argument);
 }
 
+TEST(Loop, TheImplicitStepWidensTheStiffnessBoxesOnly) {
+  LoopScales scales;
+  const auto first_order = LoopParameterSettings({}, scales, {});
+  scales.integrator = IntegratorKind::kImplicitFirstOrder;
+  const auto implicit = LoopParameterSettings({}, scales, {});
+  ASSERT_EQ(first_order.size(), implicit.size());
+  for (size_t k = 0; k < implicit.size(); ++k) {
+    const std::string& name = implicit[k].name;
+    ASSERT_EQ(name, first_order[k].name);
+    EXPECT_EQ(implicit[k].lower, first_order[k].lower) << name;
+    const bool stiffness = name == "k_D" || name == "k_d" || name == "k_A" || name == "k_phi";
+    EXPECT_DOUBLE_EQ(implicit[k].upper, (stiffness ? 100.0 : 1.0) * first_order[k].upper) << name;
+  }
+}
+
 TEST(Loop, SegmentationNoiseCountsOneFrameFlicker) {
   std::vector<BitMask> masks;
   for (int f = 0; f < 5; ++f) {

@@ -11,10 +11,13 @@ namespace calib {
 enum class IntegratorKind {
   kFirstOrder,  ///< paper eq. 10: x <- x + h F / m (velocity proportional to force)
   kVerlet,      ///< paper eq. 8: x <- 2x - x_prev + h^2 F / m (inertia)
+  /// Eq. 10 implicit in the springs and the edge damping (implicit_step.h):
+  /// (m / h + K0 + k_d / h D0) dx = F; stable at any stiffness.
+  kImplicitFirstOrder,
 };
 
 std::string ToString(IntegratorKind kind);
-/// Parses "first_order" or "verlet"; throws std::invalid_argument naming the value.
+/// Parses "first_order", "verlet" or "implicit_first_order"; throws std::invalid_argument naming the value.
 IntegratorKind IntegratorKindFromString(const std::string& name);
 
 /// First order: x += (h / m) f for nodes with inverse_weight 1 (clamped: 0).

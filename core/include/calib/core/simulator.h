@@ -10,6 +10,7 @@
 // the substep is the base model's, bit for bit.
 
 #include "calib/core/effects.h"
+#include "calib/core/implicit_step.h"
 #include "calib/core/initial_motion.h"
 #include "calib/core/integrator.h"
 #include "calib/core/model.h"
@@ -126,6 +127,8 @@ class Simulator {
 
  private:
   void ResetState();
+  // Picks this candidate's step (implicit_) and factorises its matrix.
+  void ConfigureIntegrator();
   void StartFromObservedMotion();
   void StepDampedSecondOrder(double h, double damping_per_s, double mass);
   void InterpolateObstacles(double alpha);
@@ -139,6 +142,9 @@ class Simulator {
   Model model_;
   ForceWorkspace force_workspace_;
   ModelParameters params_;
+  // The parameters of the substep's force pass: params_, without the edge
+  // damping where the implicit step treats it in its matrix.
+  ModelParameters force_params_;
 
   std::vector<uint8_t> clamped_;
   std::vector<double> inverse_weight_;  // 0 for clamped nodes, 1 otherwise
@@ -162,6 +168,10 @@ class Simulator {
   double second_order_damping_per_s_ = 0.0;
   InitialMotion initial_motion_;
   bool rest_shifted_ = false;  // model_ rests at initial_motion_.rest_shape()
+  // options.integrator == kImplicitFirstOrder: the step's matrices (built in
+  // the constructor), used unless an effect owns the dynamics.
+  std::unique_ptr<ImplicitFirstOrderStep> implicit_step_;
+  bool implicit_ = false;  // this candidate takes the implicit step
 
   int frame_ = 0;
   SimulationStatus status_ = SimulationStatus::kRunning;

@@ -94,6 +94,9 @@ struct LoopScales {
   double fps = 30.0;             ///< of the first training recording
   double duration_s = 1.0;       ///< longest training recording
   double mm_per_px = 0.0;        ///< 0: unknown
+  /// The stiffness boxes reach 100x higher with the implicit step, which is
+  /// stable there (the quasi-static regime of a pushed sponge).
+  IntegratorKind integrator = IntegratorKind::kFirstOrder;
 };
 std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::string>& effects,
                                                     const LoopScales& scales,

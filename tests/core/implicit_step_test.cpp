@@ -1,0 +1,267 @@
+// The first-order step implicit in the springs (implicit_step.h): its
+// stiffness against differences of the model's forces, the rigid motions
+// it leaves free, agreement with the explicit step for small steps, the
+// same equilibrium, and stability where the explicit step fails.
+
+#include "calib/core/constraints.h"
+#include "calib/core/implicit_step.h"
+#include "calib/core/simulator.h"
+
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace calib {
+namespace {
+
+using calib::testing::MakeGridMesh;
+using calib::testing::OneDiscScene;
+
+ModelParameters Mixed() {
+  ModelParameters p = calib::testing::StiffTestParameters();
+  p.k_distance = 50.0;
+  p.k_area = 20.0;
+  p.k_angle = 5.0;
+  p.k_damping = 0.5;
+  return p;
+}
+
+Eigen::VectorXd Flat(const std::vector<Vec2>& field) {
+  Eigen::VectorXd v(2 * field.size());
+  for (size_t i = 0; i < field.size(); ++i) v.segment<2>(2 * i) = field[i];
+  return v;
+}
+
+std::vector<Vec2> RandomField(size_t n, double amount, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-amount, amount);
+  std::vector<Vec2> field(n);
+  for (Vec2& p : field) p = Vec2(u(rng), u(rng));
+  return field;
+}
+
+TEST(ImplicitStep, StiffnessIsTheForcesDerivativeAtRest) {
+  const Mesh mesh = MakeGridMesh(5, 3, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  const std::vector<double> movable(mesh.NumNodes(), 1.0);
+  const ImplicitFirstOrderStep step(model, movable);
+  const ModelParameters p = Mixed();
+  const Eigen::SparseMatrix<double> k = step.Stiffness(p);
+  ASSERT_EQ(k.rows(), 2 * mesh.NumNodes());
+  EXPECT_LT((Eigen::MatrixXd(k) - Eigen::MatrixXd(k).transpose()).norm(), 1e-9 * k.norm());
+
+  // K u = -(F(X + e u) - F(X - e u)) / 2e for a random direction u (the
+  // springs without damping, at zero velocity).
+  ModelParameters springs = p;
+  springs.k_damping = 0.0;
+  const std::vector<Vec2> u = RandomField(mesh.NumNodes(), 1.0, 7);
+  const double e = 1e-4;
+  std::vector<Vec2> plus(mesh.rest_positions), minus(mesh.rest_positions);
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    plus[i] += e * u[i];
+    minus[i] -= e * u[i];
+  }
+  const std::vector<Vec2> zero(mesh.NumNodes(), Vec2::Zero());
+  std::vector<Vec2> f_plus(mesh.NumNodes()), f_minus(mesh.NumNodes());
+  model.ComputeForces(springs, plus, zero, f_plus);
+  model.ComputeForces(springs, minus, zero, f_minus);
+  const Eigen::VectorXd expected = (Flat(f_minus) - Flat(f_plus)) / (2.0 * e);
+  const Eigen::VectorXd got = k * Flat(u);
+  EXPECT_LT((got - expected).norm(), 1e-6 * expected.norm()) << "|K u| = " << got.norm();
+}
+
+TEST(ImplicitStep, RigidMotionsAreFreeAndEveryOtherMotionIsResisted) {
+  const Mesh mesh = MakeGridMesh(5, 3, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  const std::vector<double> movable(mesh.NumNodes(), 1.0);
+  const ImplicitFirstOrderStep step(model, movable);
+  const Eigen::SparseMatrix<double> k = step.Stiffness(Mixed());
+  Vec2 centre = Vec2::Zero();
+  for (const Vec2& p : mesh.rest_positions) centre += p / mesh.NumNodes();
+  std::vector<Vec2> along_x(mesh.NumNodes(), Vec2(1, 0)), turn(mesh.NumNodes());
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    const Vec2 r = mesh.rest_positions[i] - centre;
+    turn[i] = Vec2(-r.y(), r.x());
+  }
+  const double scale = k.norm();
+  EXPECT_LT((k * Flat(along_x)).norm(), 1e-9 * scale * Flat(along_x).norm());
+  EXPECT_LT((k * Flat(turn)).norm(), 1e-9 * scale * Flat(turn).norm());
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    const Eigen::VectorXd u = Flat(RandomField(mesh.NumNodes(), 1.0, seed));
+    EXPECT_GT(u.dot(k * u), 0.0) << "seed " << seed;
+  }
+}
+
+TEST(ImplicitStep, AgreesWithTheExplicitStepToFirstOrderInTheStep) {
+  // One step from a deformed state: x + (m/h + K0)^-1 F against x + (h/m) F.
+  // Their difference relative to the step shrinks in proportion to h.
+  const Mesh mesh = MakeGridMesh(5, 3, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  const std::vector<double> movable(mesh.NumNodes(), 1.0);
+  ImplicitFirstOrderStep step(model, movable);
+  ModelParameters p = Mixed();
+  p.k_damping = 0.0;
+  const std::vector<Vec2> x0 = calib::testing::Jittered(mesh.rest_positions, 0.5, 3);
+  const std::vector<Vec2> zero(mesh.NumNodes(), Vec2::Zero());
+  std::vector<Vec2> f(mesh.NumNodes());
+  model.ComputeForces(p, x0, zero, f);
+  double previous_ratio = 0.0;
+  for (double h : {1e-3, 1e-4, 1e-5}) {
+    std::string error;
+    ASSERT_TRUE(step.Configure(p, h, &error)) << error;
+    std::vector<Vec2> x = x0;
+    step.Step(f, x);
+    double difference = 0.0, explicit_step = 0.0;
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      const Vec2 explicit_move = (h / p.mass) * f[i];
+      difference += (x[i] - x0[i] - explicit_move).squaredNorm();
+      explicit_step += explicit_move.squaredNorm();
+    }
+    const double ratio = std::sqrt(difference / explicit_step);
+    if (previous_ratio > 0.0) EXPECT_NEAR(ratio / previous_ratio, 0.1, 0.02) << "h = " << h;
+    previous_ratio = ratio;
+  }
+  EXPECT_LT(previous_ratio, 1e-3);
+}
+
+// A strip clamped at its top row, pulled at its bottom corner by a constant
+// force (the sensor on a disc far from the mesh, nearest to that corner).
+Scene PulledStrip(const Mesh& mesh, int frames) {
+  Vec2 corner = mesh.rest_positions[0];
+  for (const Vec2& p : mesh.rest_positions) {
+    if (p.y() > corner.y() || (p.y() == corner.y() && p.x() > corner.x())) corner = p;
+  }
+  Scene scene = OneDiscScene(
+      frames, 30.0, [&](int) { return Disc{corner + Vec2(60, 60), 1.0}; },
+      [](int) { return Vec2(3.0, 1.0); });
+  scene.clamps.push_back({0.0, 0.0, 1000.0, 1.0});
+  return scene;
+}
+
+TEST(ImplicitStep, ReachesTheExplicitStepsEquilibrium) {
+  const Mesh mesh = MakeGridMesh(3, 6, 10.0, Vec2(20, 0));
+  const Scene scene = PulledStrip(mesh, 200);
+  ModelParameters p = Mixed();
+  SimulationOptions explicit_options;
+  explicit_options.substeps = 40;  // stable and settled with these stiffnesses
+  SimulationOptions implicit_options;
+  implicit_options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator explicit_sim(mesh, scene, explicit_options), implicit_sim(mesh, scene, implicit_options);
+  explicit_sim.Reset(p);
+  implicit_sim.Reset(p);
+  while (explicit_sim.Advance()) {
+  }
+  while (implicit_sim.Advance()) {
+  }
+  ASSERT_EQ(explicit_sim.status(), SimulationStatus::kFinished) << explicit_sim.failure_reason();
+  ASSERT_EQ(implicit_sim.status(), SimulationStatus::kFinished) << implicit_sim.failure_reason();
+  double deflection = 0.0, difference = 0.0;
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    EXPECT_EQ(implicit_sim.positions()[i] == mesh.rest_positions[i],
+              implicit_sim.clamped()[i] != 0)
+        << "node " << i << ": clamped nodes stay, the others move";
+    deflection = std::max(deflection, (explicit_sim.positions()[i] - mesh.rest_positions[i]).norm());
+    difference = std::max(difference, (implicit_sim.positions()[i] - explicit_sim.positions()[i]).norm());
+  }
+  EXPECT_GT(deflection, 1.0) << "the pull should bend the strip";
+  EXPECT_LT(difference, 1e-3 * deflection);
+}
+
+TEST(ImplicitStep, StableWhereTheExplicitStepFails) {
+  // A finger pushes a patch of springs 1000 times stiffer than the explicit
+  // step bears at 10 substeps.
+  const Mesh mesh = MakeGridMesh(10, 4, 10.0, Vec2(100, 100));
+  Scene scene = OneDiscScene(40, 30.0, [](int f) {
+    return Disc{Vec2(92.0 + std::min(1.0, f / 24.0) * 25.0, 120.0), 8.0};
+  });
+  ModelParameters p = Mixed();
+  p.k_distance *= 1000.0;
+  p.k_area *= 1000.0;
+  p.k_angle *= 1000.0;
+  Simulator explicit_sim(mesh, scene, {});
+  explicit_sim.Reset(p);
+  while (explicit_sim.Advance()) {
+  }
+  EXPECT_EQ(explicit_sim.status(), SimulationStatus::kFailed);
+
+  SimulationOptions options;
+  options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator sim(mesh, scene, options);
+  sim.Reset(p);
+  double moved = 0.0;
+  const auto check = [&](int s) {
+    ASSERT_EQ(FindNodeInsideDisc(sim.obstacles(), sim.positions(), 1e-9), -1)
+        << "frame " << sim.frame() << " substep " << s;
+    ASSERT_EQ(FindInvertedTriangle(mesh, sim.positions()), -1);
+  };
+  while (sim.Advance(check)) {
+  }
+  ASSERT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
+  // Stiff: the patch moves as a body ahead of the finger, barely deformed.
+  double stretch = 0.0;
+  for (int e = 0; e < mesh.NumEdges(); ++e) {
+    const auto [a, b] = mesh.edges[e];
+    const double length = (sim.positions()[a] - sim.positions()[b]).norm();
+    stretch = std::max(stretch, std::abs(length / mesh.rest_length_px[e] - 1.0));
+  }
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    moved = std::max(moved, sim.positions()[i].x() - mesh.rest_positions[i].x());
+  }
+  EXPECT_GT(moved, 10.0);
+  EXPECT_LT(stretch, 0.05);
+}
+
+TEST(ImplicitStep, UniformForceTranslatesAsTheExplicitStep) {
+  // Spread evenly (translation share 1), the push moves an unclamped mesh
+  // rigidly by (h / m) F / N per substep under either step.
+  const Mesh mesh = MakeGridMesh(6, 3, 10.0, Vec2(100, 100));
+  const Scene scene = OneDiscScene(
+      5, 30.0, [](int) { return Disc{Vec2(0.0, 0.0), 1.0}; }, [](int) { return Vec2(2.0, -1.0); });
+  ModelParameters p = Mixed();
+  p.translation = 1.0;
+  SimulationOptions implicit_options;
+  implicit_options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator explicit_sim(mesh, scene, {}), implicit_sim(mesh, scene, implicit_options);
+  explicit_sim.Reset(p);
+  implicit_sim.Reset(p);
+  while (explicit_sim.Advance() && implicit_sim.Advance()) {
+  }
+  const Vec2 expected_shift = 4 * scene.frame_time_s * Vec2(2.0, -1.0) / (p.mass * mesh.NumNodes());
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    EXPECT_LT((explicit_sim.positions()[i] - mesh.rest_positions[i] - expected_shift).norm(), 1e-9);
+    EXPECT_LT((implicit_sim.positions()[i] - mesh.rest_positions[i] - expected_shift).norm(), 1e-9);
+  }
+}
+
+TEST(ImplicitStep, SameInputSameBits) {
+  const Mesh mesh = MakeGridMesh(8, 4, 10.0, Vec2(100, 100));
+  const Scene scene = OneDiscScene(30, 30.0, [](int f) {
+    return Disc{Vec2(92.0 + f, 120.0), 8.0};
+  });
+  SimulationOptions options;
+  options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator a(mesh, scene, options), b(mesh, scene, options);
+  a.Reset(Mixed());
+  b.Reset(Mixed());
+  while (a.Advance()) {
+  }
+  while (b.Advance()) {
+  }
+  ASSERT_EQ(a.status(), SimulationStatus::kFinished) << a.failure_reason();
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    EXPECT_EQ(a.positions()[i].x(), b.positions()[i].x());
+    EXPECT_EQ(a.positions()[i].y(), b.positions()[i].y());
+  }
+  // A reset simulator repeats the run exactly.
+  const std::vector<Vec2> first = a.positions();
+  a.Reset(Mixed());
+  while (a.Advance()) {
+  }
+  for (int i = 0; i < mesh.NumNodes(); ++i) EXPECT_EQ(a.positions()[i], first[i]);
+}
+
+}  // namespace
+}  // namespace calib
