@@ -1,7 +1,8 @@
 #pragma once
 // Runs the model over a scene frame by frame. All buffers are allocated once
-// in the constructor: Reset and Advance allocate nothing, so one Simulator
-// per thread can evaluate many candidates.
+// in the constructor: Reset and Advance allocate nothing (except that with
+// the implicit step Reset factorises its matrix), so one Simulator per
+// thread can evaluate many candidates.
 //
 // A simulator runs the base model, or the base model plus the effects of a
 // ModelDefinition (effects.h, model_definition.h): each effect's term is
@@ -66,7 +67,8 @@ class Simulator {
   /// As above, from named values: exactly the names of parameter_specs()
   /// (the base model's and every effect's), each finite and within its
   /// bounds; else ParameterError naming the parameter ("parameters: ...").
-  /// Configures every effect and resets its state (allocates nothing).
+  /// Configures every effect and resets its state (allocates nothing but
+  /// the implicit step's factor).
   /// With inertia, a clamped object whose scene knows its observed motion
   /// (Scene::motion) starts from it (initial_motion.h): the springs rest at
   /// the estimated equilibrium and the nodes move with the observed
