@@ -67,7 +67,6 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   }
   const int m = static_cast<int>(coordinate_of_unknown.size());
   num_coordinates_ = 2 * n;
-  rest_ = model.mesh().rest_positions;
   movable_ = movable;
   int num_clamped = 0;
   for (int i = 0; i < n; ++i) {
@@ -211,12 +210,18 @@ void ImplicitFirstOrderStep::Step(std::span<const Vec2> f, std::span<Vec2> x) {
     }
     solved_turn /= turn_norm_sq;
   }
-  const double kept_turn = h_over_m_ * turn_rate - solved_turn;
+  // The turn field is that of the positions before the step: add the kept
+  // turn to the solution first, then move the nodes.
+  if (turn_norm_sq > 0.0) {
+    const double kept_turn = h_over_m_ * turn_rate - solved_turn;
+    for (int k = 0; k < m; ++k) {
+      const int c = coordinate_of_unknown_[k];
+      solution_[k] += kept_turn * turn(static_cast<size_t>(c / 2))[c % 2];
+    }
+  }
   for (int k = 0; k < m; ++k) {
     const int c = coordinate_of_unknown_[k];
-    const size_t i = static_cast<size_t>(c / 2);
-    const double rigid = turn_norm_sq > 0.0 ? kept_turn * turn(i)[c % 2] : 0.0;
-    x[i][c % 2] += solution_[k] + rigid;
+    x[c / 2][c % 2] += solution_[k];
   }
 }
 

@@ -1,7 +1,8 @@
 // The first-order step implicit in the springs (implicit_step.h): its
 // stiffness against differences of the model's forces, the rigid motions
-// it leaves free, agreement with the explicit step for small steps, the
-// same equilibrium, and stability where the explicit step fails.
+// it leaves free (and the turn it does not make at a deformed shape),
+// agreement with the explicit step for small steps, the same equilibrium,
+// and stability where the explicit step fails.
 
 #include "calib/core/constraints.h"
 #include "calib/core/implicit_step.h"
@@ -125,6 +126,45 @@ TEST(ImplicitStep, AgreesWithTheExplicitStepToFirstOrderInTheStep) {
     previous_ratio = ratio;
   }
   EXPECT_LT(previous_ratio, 1e-3);
+}
+
+TEST(ImplicitStep, StiffSpringsDoNotTurnAFreeBody) {
+  // The springs' forces at a deformed shape have no torque about its
+  // centroid, so a step on them alone neither moves nor turns the body
+  // there (the explicit step's (h / m) F does neither either), however stiff
+  // the springs: their torque about the rest shape is not the body's.
+  const Mesh mesh = MakeGridMesh(6, 3, 10.0, Vec2(100, 100));
+  const Model model(mesh);
+  const std::vector<double> movable(mesh.NumNodes(), 1.0);
+  ImplicitFirstOrderStep step(model, movable);
+  ModelParameters p = Mixed();
+  p.k_distance *= 1e4;
+  p.k_area *= 1e4;
+  p.k_angle *= 1e4;
+  p.k_damping = 0.0;
+  std::string error;
+  ASSERT_TRUE(step.Configure(p, 1.0 / 300.0, &error)) << error;
+  const std::vector<Vec2> x0 = calib::testing::Jittered(mesh.rest_positions, 2.0, 11);
+  const std::vector<Vec2> zero(mesh.NumNodes(), Vec2::Zero());
+  std::vector<Vec2> f(mesh.NumNodes());
+  model.ComputeForces(p, x0, zero, f);
+  std::vector<Vec2> x = x0;
+  step.Step(f, x);
+  Vec2 centre = Vec2::Zero(), shift = Vec2::Zero();
+  for (const Vec2& q : x0) centre += q / mesh.NumNodes();
+  double turn = 0.0, turn_norm_sq = 0.0, move_sq = 0.0;
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    const Vec2 dx = x[i] - x0[i], r = x0[i] - centre, t(-r.y(), r.x());
+    shift += dx;
+    turn += dx.dot(t);
+    turn_norm_sq += t.squaredNorm();
+    move_sq += dx.squaredNorm();
+  }
+  ASSERT_GT(move_sq, 0.0) << "the step should move the deformed nodes";
+  const double move = std::sqrt(move_sq);
+  EXPECT_LT(shift.norm(), 1e-9 * move * mesh.NumNodes());
+  EXPECT_LT(std::abs(turn) / std::sqrt(turn_norm_sq), 1e-9 * move)
+      << "turn about the centroid, relative to the step";
 }
 
 // A strip clamped at its top row, pulled at its bottom corner by a constant

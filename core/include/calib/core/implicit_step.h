@@ -55,8 +55,8 @@ namespace calib {
 
 class ImplicitFirstOrderStep {
  public:
-  /// Assembles the unit matrices of `model` (at its current rest shape) for
-  /// the nodes with `movable` != 0. `model` must outlive this.
+  /// Assembles the unit matrices of `model` (at its mesh's rest shape) for
+  /// the nodes with `movable` != 0. `movable` must outlive this.
   ImplicitFirstOrderStep(const Model& model, std::span<const double> movable);
 
   /// Factorises m / h I + K0 + (k_d / h) D0 for `params` and step `h`.
@@ -94,7 +94,6 @@ class ImplicitFirstOrderStep {
   enum class FreeTurn { kNone, kFree, kPivot };
   FreeTurn free_turn_ = FreeTurn::kNone;
   int pivot_ = -1;                    // the clamped node (kPivot)
-  std::span<const Vec2> rest_;        // the rest shape K0 was assembled at
   std::span<const double> movable_;
 };
 
