@@ -120,12 +120,14 @@ CALIB_SCAN_TARGETS size_t FirstNodeWithin(const double* __restrict x, double cx,
 }  // namespace
 
 int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inverse_weight,
-                      std::span<Vec2> x) {
+                      std::span<Vec2> x, const SubstepStart& start) {
   static_assert(sizeof(Vec2) == 2 * sizeof(double));
   const double* xd = reinterpret_cast<const double*>(x.data());
   const size_t n = x.size();
+  const bool start_known = start.x.size() == n && start.discs.size() == discs.size();
   int moved = 0;
-  for (const Disc& disc : discs) {
+  for (size_t k = 0; k < discs.size(); ++k) {
+    const Disc& disc = discs[k];
     // A node projected onto the circle may land a rounding error inside it;
     // that counts as on the boundary.
     const double inner = disc.radius_px * (1.0 - 1e-12);
@@ -137,6 +139,19 @@ int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inver
       const Vec2 d = x[i] - disc.centre;
       const double dist_sq = d.squaredNorm();
       if (dist_sq >= inner_sq || inverse_weight[i] == 0.0) continue;
+      if (start_known) {
+        // Where the node was against the disc before the step (both may
+        // have moved). Past the centre from there, the nearest way out is
+        // the far side: go back the way it came instead.
+        const Vec2 from = start.x[i] - start.discs[k].centre;
+        const double from_norm = from.norm();
+        if (from_norm > 0.0 && !(d.dot(from) > 0.0)) {
+          const Vec2 u = from / from_norm;
+          x[i] += (disc.radius_px - u.dot(d)) * u;
+          ++moved;
+          continue;
+        }
+      }
       const double dist = std::sqrt(dist_sq);
       x[i] = dist > 0.0 ? Vec2(disc.centre + d * (disc.radius_px / dist))
                         : Vec2(disc.centre + Vec2(disc.radius_px, 0.0));
@@ -165,12 +180,23 @@ bool InsideOutline(const Mesh& mesh, std::span<const Vec2> x, const Vec2& p) {
   return inside;
 }
 
+// Whether disc d's centre lay on the outer side of the line of edge a -> b
+// at the substep's start.
+bool CentreWasInFront(const SubstepStart& start, int a, int b, size_t d) {
+  const Vec2 e = start.x[b] - start.x[a];
+  const Vec2 outward(e.y(), -e.x());
+  return outward.dot(start.discs[d].centre - start.x[a]) > 0.0;
+}
+
 }  // namespace
 
 int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
-                              std::span<const double> inverse_weight, std::span<Vec2> x) {
+                              std::span<const double> inverse_weight, std::span<Vec2> x,
+                              const SubstepStart& start) {
+  const bool start_known = start.x.size() == x.size() && start.discs.size() == discs.size();
   int moved = 0;
-  for (const Disc& disc : discs) {
+  for (size_t d = 0; d < discs.size(); ++d) {
+    const Disc& disc = discs[d];
     const double r = disc.radius_px;
     // Edges are moved only when they lie inside by more than a hundredth of
     // a pixel (invisible to the rasteriser), then onto the circle itself:
@@ -196,7 +222,11 @@ int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
         // s > 0: the centre is in front of the edge, outside.
         const Vec2 n = Vec2(-e.y(), e.x()) / std::sqrt(len_sq);
         const double s = n.dot(x[a] - disc.centre);
-        if (!(s < inner) || !(s > (centre_inside ? -r : 0.0))) continue;
+        if (!(s < inner)) continue;
+        if (!(s > (centre_inside ? -r : 0.0)) &&
+            !(centre_inside && start_known && CentreWasInFront(start, a, b, d))) {
+          continue;
+        }
         const double wa = inverse_weight[a] * (1.0 - t), wb = inverse_weight[b] * t;
         const double denom = wa * (1.0 - t) + wb * t;
         if (!(denom > 0.0)) continue;  // both ends clamped

@@ -67,6 +67,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       v_(mesh.NumNodes(), Vec2::Zero()),
       f_(mesh.NumNodes(), Vec2::Zero()),
       discs_(scene.num_obstacles),
+      discs_start_(scene.num_obstacles),
       definition_(model),
       parameter_specs_(ModelParameterSpecs(model)),
       initial_motion_(mesh, clamped_) {
@@ -266,6 +267,7 @@ bool Simulator::Substep(int substep) {
     }
   }
 
+  std::copy(discs_.begin(), discs_.end(), discs_start_.begin());
   InterpolateObstacles(static_cast<double>(substep + 1) / options_.substeps);
   if (!ApplyConstraints()) return false;
 
@@ -295,10 +297,15 @@ bool Simulator::ApplyConstraints() {
     // Edges first, nodes last: a node is never left inside a disc by the
     // edge step (the check below holds nodes to it; an edge that the rounds
     // leave a little inside is tolerated).
-    const int edges_moved = options_.outline_contact
-                                ? ProjectBoundaryOutOfDiscs(mesh_, discs_, inverse_weight_, x_)
-                                : 0;
-    const int moved = edges_moved + ProjectOutOfDiscs(discs_, inverse_weight_, x_);
+    // Against where the substep started: a step longer than a disc's
+    // radius (stiff springs with the implicit step) is resolved back to the
+    // side it came from, not out of the disc's far side.
+    const SubstepStart start{x_prev_, discs_start_};
+    const int edges_moved =
+        options_.outline_contact
+            ? ProjectBoundaryOutOfDiscs(mesh_, discs_, inverse_weight_, x_, start)
+            : 0;
+    const int moved = edges_moved + ProjectOutOfDiscs(discs_, inverse_weight_, x_, start);
     const int repaired =
         RepairInvertedTriangles(mesh_, options_.min_area_fraction, inverse_weight_, x_);
     // A round that moved nothing found every constraint met.

@@ -133,6 +133,88 @@ TEST(DiscContact, LeavesDiscsClearOfEdgesOrNearestAnEndToTheNodes) {
   }
 }
 
+// Steps longer than a disc's radius (stiff springs with the implicit step
+// move a node 10-20 px in one substep): the projections resolve a contact
+// back to the side the node or the edge came from, where the nearest way out
+// of the disc at the end of the step is its far side.
+
+TEST(DiscContact, ANodeCarriedPastTheCentreGoesBackTheWayItCame) {
+  const std::vector<Disc> discs = {{Vec2(10.0, 10.0), 4.0}};
+  const std::vector<double> w = {1.0};
+  const std::vector<Vec2> start_x = {Vec2(10.0, 4.0)};  // 6 px above the centre
+  const SubstepStart start{start_x, discs};
+  std::vector<Vec2> radial = {Vec2(10.5, 12.0)};  // 2 px past the centre
+  std::vector<Vec2> sided = radial;
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, radial), 1);
+  EXPECT_GT(radial[0].y(), 10.0);  // without the start: out of the far side
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, sided, start), 1);
+  // Back above the disc, on the tangent at the side it came from, the
+  // sideways offset kept.
+  EXPECT_NEAR(sided[0].x(), 10.5, 1e-12);
+  EXPECT_NEAR(sided[0].y(), 6.0, 1e-12);
+  EXPECT_GE((sided[0] - discs[0].centre).norm(), 4.0);
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, sided, start), 0);
+
+  // Exactly on the centre: the side it came from, not the default +x.
+  std::vector<Vec2> centred = {discs[0].centre};
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, centred, start), 1);
+  EXPECT_NEAR(centred[0].x(), 10.0, 1e-12);
+  EXPECT_NEAR(centred[0].y(), 6.0, 1e-12);
+}
+
+TEST(DiscContact, ANodeShortOfTheCentreIsProjectedRadiallyAsWithoutTheStart) {
+  const std::vector<Disc> discs = {{Vec2(10.0, 10.0), 4.0}};
+  const std::vector<double> w = {1.0};
+  const std::vector<Vec2> start_x = {Vec2(10.0, 4.0)};
+  std::vector<Vec2> plain = {Vec2(11.0, 7.5)};  // 2.5 px short of the centre's level
+  std::vector<Vec2> sided = plain;
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, plain), 1);
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, sided, SubstepStart{start_x, discs}), 1);
+  EXPECT_EQ(plain, sided);
+  EXPECT_NEAR((sided[0] - discs[0].centre).norm(), 4.0, 1e-12);
+}
+
+TEST(DiscContact, ADiscThatRanOverANodePushesItAhead) {
+  // The disc moved 12 px right in the step, over a still node: relative to
+  // the disc, the node came from the right, and stays ahead of the disc.
+  const std::vector<Disc> start_discs = {{Vec2(0.0, 10.0), 4.0}};
+  const std::vector<Disc> discs = {{Vec2(12.0, 10.0), 4.0}};
+  const std::vector<double> w = {1.0};
+  const std::vector<Vec2> start_x = {Vec2(10.0, 10.0)};
+  std::vector<Vec2> x = start_x;
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, x, SubstepStart{start_x, start_discs}), 1);
+  EXPECT_NEAR(x[0].x(), 16.0, 1e-12);
+  EXPECT_NEAR(x[0].y(), 10.0, 1e-12);
+}
+
+TEST(DiscContact, AnEdgeThatSweptOverAWholeDiscIsPutBackInFrontOfIt) {
+  const Mesh mesh = Square();
+  const std::vector<double> w(mesh.NumNodes(), 1.0);
+  // The disc 5 px above the edge y = 0, outside; in one step the square
+  // moves 10 px up, its top edge 5 px past the centre, more than the radius.
+  const std::vector<Disc> discs = {{Vec2(10.0, -5.0), 3.0}};
+  const std::vector<Vec2> start_x = mesh.rest_positions;
+  std::vector<Vec2> moved = mesh.rest_positions;
+  for (Vec2& p : moved) p.y() -= 10.0;
+  // From the end of the step alone the edge is too far past the disc to
+  // tell it from an edge behind it: it is left alone, the disc inside.
+  std::vector<Vec2> x = moved;
+  EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x), 0);
+  EXPECT_EQ(x, moved);
+  // With the step's start, the edge goes back past the centre and touches
+  // the disc from below, as before the step.
+  x = moved;
+  EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x, SubstepStart{start_x, discs}), 1);
+  const int a = NodeAt(mesh, 0, 0), b = NodeAt(mesh, 20, 0);
+  EXPECT_NEAR(x[a].y(), -2.0, 1e-12);
+  EXPECT_NEAR(x[b].y(), -2.0, 1e-12);
+  EXPECT_NEAR(Clearance(mesh, discs[0], x), 0.0, 1e-12);
+  // An edge that had the centre behind it at the start (the square's
+  // bottom, facing away) is not pulled through the disc.
+  EXPECT_EQ(x[NodeAt(mesh, 0, 20)].y(), 10.0);
+  EXPECT_EQ(x[NodeAt(mesh, 20, 20)].y(), 10.0);
+}
+
 // A finger narrower than the mesh's edges pushed 12 px into the middle of a
 // side between two nodes: with outline contact the simulator keeps it out of
 // the outline at every substep and it moves the patch; with the paper's

@@ -10,11 +10,25 @@
 
 namespace calib {
 
+/// Where a substep started: the nodes' positions and the discs before the
+/// step (the same discs in the same order). A step longer than a disc's
+/// radius can carry a node past the disc's centre, or an edge over it; the
+/// projections then need to know which side it came from. Empty spans: not
+/// known (only the current positions count).
+struct SubstepStart {
+  std::span<const Vec2> x;
+  std::span<const Disc> discs;
+};
+
 /// Moves every movable node that lies inside a disc radially onto its
-/// boundary. A node exactly at a centre is moved along +x. Returns the number
-/// of nodes moved.
+/// boundary. A node exactly at a centre is moved along +x. With the
+/// substep's start known, a node that went past the centre (or onto it)
+/// from where it was against the disc at the start is moved back out on
+/// that side instead, along the direction it came from, onto the circle's
+/// tangent there: a long step does not push it out of the far side.
+/// Returns the number of nodes moved.
 int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inverse_weight,
-                      std::span<Vec2> x);
+                      std::span<Vec2> x, const SubstepStart& start = {});
 
 /// Edges inside a disc by less than this are left alone by
 /// ProjectBoundaryOutOfDiscs: invisible to the rasteriser.
@@ -32,11 +46,15 @@ inline constexpr double kEdgeContactTolerancePx = 0.01;
 /// so its nearest point may still lie a little inside: repeated rounds, as
 /// the simulator runs them, converge. A centre that got inside the outline
 /// (a disc that went through an edge, or an edge that swept over it) is put
-/// back out: then the edges it overlaps from behind are moved past it too.
+/// back out: then the edges it overlaps from behind are moved past it too,
+/// by up to the radius; with the substep's start known, an edge that had
+/// the centre in front of it at the start is moved back past the centre
+/// from any depth (an edge that swept over the whole disc in one step).
 /// An edge whose nearest point is an end node is left to ProjectOutOfDiscs.
 /// Returns the number of edges moved.
 int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
-                              std::span<const double> inverse_weight, std::span<Vec2> x);
+                              std::span<const double> inverse_weight, std::span<Vec2> x,
+                              const SubstepStart& start = {});
 
 /// For every triangle whose signed area is below min_area_fraction * A0
 /// (inverted or nearly so), pushes the node and the opposite edge apart: a

@@ -154,7 +154,8 @@ class Simulator {
   double divergence_radius_sq_ = 0.0;
 
   std::vector<Vec2> x_, x_prev_, v_, f_;
-  std::vector<Disc> discs_;  // obstacles at the current substep
+  std::vector<Disc> discs_;        // obstacles at the current substep
+  std::vector<Disc> discs_start_;  // obstacles at the current substep's start
   Vec2 push_ = Vec2::Zero();
 
   // Effects (none for the base model): the terms, and per hook the terms
