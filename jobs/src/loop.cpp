@@ -100,9 +100,26 @@ ParameterSetting Fixed(const std::string& name, double value) {
   return s;
 }
 
+// The base model's mass, fixed: with the first-order integrator only
+// stiffness / mass ratios matter.
+constexpr double kLoopMass = 0.2;
+
 double Finite(double v, double fallback) { return std::isfinite(v) && v > 0.0 ? v : fallback; }
 
+
 }  // namespace
+
+double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass) {
+  double speed = 0.0;
+  for (int f = 1; f < scene.num_frames; ++f) {
+    for (int k = 0; k < scene.num_obstacles; ++k) {
+      const double step =
+          (scene.ObstaclesAt(f)[k].centre - scene.ObstaclesAt(f - 1)[k].centre).norm();
+      speed = std::max(speed, step / scene.frame_time_s);
+    }
+  }
+  return mesh.NumNodes() * mass * speed;
+}
 
 std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::string>& effects,
                                                     const LoopScales& scales,
@@ -116,8 +133,9 @@ std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::strin
   std::vector<ParameterSetting> out = {
       Searched("k_D", 10, 1e5 * stiff, kLog),  Searched("k_d", 1e-3, 100 * stiff, kLog),
       Searched("k_A", 0.1, 1e5 * stiff, kLog), Searched("k_phi", 0.01, 1e4 * stiff, kLog),
-      Fixed("mass", 0.2),                      Searched("tau", 0, 0.5, kLinear)};
+      Fixed("mass", kLoopMass),                Searched("tau", 0, 0.5, kLinear)};
   const double force = Finite(scales.peak_force, 1.0);
+  const double drag = Finite(scales.drag_force, force);
   const double fps = Finite(scales.fps, 30.0);
   const double duration = Finite(scales.duration_s, 1.0);
   // Gravity 9.81 m/s^2 in pixels; an unknown scale is taken as 0.25 mm/px
@@ -134,7 +152,10 @@ std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::strin
       out.push_back(Searched("gravity_px_s2", 0.0, 2.0 * g_px, kLinear));
       out.push_back(Searched("gravity_angle_deg", -180.0, 180.0, kLinear));
     } else if (effect == "table_friction") {
-      out.push_back(Searched("friction_force", 1e-3 * force, 2.0 * force, kLog));
+      // Friction competes with the model's drag, not with the sensor's
+      // reading: on the bundled pushes 2 x the peak reading (~3) holds a
+      // node back by 1e-4 px a substep where the finger moves it 0.1 px.
+      out.push_back(Searched("friction_force", 1e-3 * drag, 2.0 * drag, kLog));
     } else if (effect == "plasticity") {
       out.push_back(Searched("plastic_yield_strain", 0.005, 0.5, kLog));
       out.push_back(Searched("plastic_rate_per_s", 0.05, 50.0, kLog));
@@ -418,6 +439,7 @@ void Loop::Prepare() {
     if (!r.train) continue;
     const Recording& rec = r.prepared->recording;
     for (const Vec2& f : rec.forces) scales_.peak_force = std::max(scales_.peak_force, f.norm());
+    scales_.drag_force = std::max(scales_.drag_force, ModelDragForce(r.prepared->mesh, r.prepared->scene, kLoopMass));
     scales_.duration_s = std::max(scales_.duration_s * (first ? 0.0 : 1.0),
                                   rec.num_frames / std::max(rec.fps, 1e-9));
     if (first) {

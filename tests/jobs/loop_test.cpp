@@ -313,6 +313,37 @@ TEST(Loop, SearchBoxesCoverEveryEffectAndNeutralValuesLieInThem) {
   EXPECT_THROW(LoopParameterSettings({"levitation"}, scales, {}), std::invalid_argument);
 }
 
+TEST(Loop, TableFrictionIsSizedOnTheModelsDragNotOnTheSensor) {
+  // A patch of 4 x 3 cells (20 nodes); the disc moves 3 px in frame 1
+  // (90 px/s at 30 fps), then 1 px a frame.
+  const Mesh mesh = testing::MakeGridMesh(4, 3, 20.0);
+  ASSERT_EQ(mesh.NumNodes(), 20);
+  const Scene scene = testing::OneDiscScene(
+      4, 30.0, [](int f) { return Disc{Vec2(f == 0 ? 0.0 : 2.0 + f, -10.0), 4.0}; },
+      [](int) { return Vec2(0.0, 1.0); });
+  EXPECT_DOUBLE_EQ(ModelDragForce(mesh, scene, 0.2), 20 * 0.2 * 90.0);
+  EXPECT_EQ(ModelDragForce(mesh, testing::StillScene(4), 0.2), 0.0);  // nothing moves
+
+  LoopScales scales;
+  scales.peak_force = 2.0;
+  scales.drag_force = 1800.0;
+  auto expect_box = [&](const std::string& effect, const std::string& name, double lower,
+                        double upper) {
+    for (const ParameterSetting& s : LoopParameterSettings({effect}, scales, {})) {
+      if (s.name != name) continue;
+      EXPECT_DOUBLE_EQ(s.lower, lower) << name;
+      EXPECT_DOUBLE_EQ(s.upper, upper) << name;
+      return;
+    }
+    ADD_FAILURE() << name << " not searched";
+  };
+  expect_box("table_friction", "friction_force", 1.8, 3600.0);
+  // The push's balance compares with the reading itself: the sensor's unit.
+  expect_box("push_relaxation", "push_friction_force", 2e-3, 4.0);
+  scales.drag_force = 0.0;  // no moving obstacle: the reading's scale
+  expect_box("table_friction", "friction_force", 2e-3, 4.0);
+}
+
 TEST(Loop, TheImplicitStepWidensTheStiffnessBoxesOnly) {
   LoopScales scales;
   const auto first_order = LoopParameterSettings({}, scales, {});

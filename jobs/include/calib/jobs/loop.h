@@ -94,10 +94,21 @@ struct LoopScales {
   double fps = 30.0;             ///< of the first training recording
   double duration_s = 1.0;       ///< longest training recording
   double mm_per_px = 0.0;        ///< 0: unknown
+  /// The model's own force scale: the first-order drag of the whole mesh
+  /// moving at the fastest obstacle's speed, nodes x mass x speed (largest
+  /// over the training recordings). The model's forces are not in the
+  /// sensor's unit (only stiffness / mass ratios are calibrated), so
+  /// table friction is sized on this. 0: no obstacle moves.
+  double drag_force = 0.0;
   /// The stiffness boxes reach 100x higher with the implicit step, which is
   /// stable there (the quasi-static regime of a pushed sponge).
   IntegratorKind integrator = IntegratorKind::kFirstOrder;
 };
+/// LoopScales::drag_force of one recording: the mesh's nodes x `mass` x
+/// the fastest obstacle's speed between two frames (px/s); 0 without a
+/// moving obstacle.
+double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass);
+
 std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::string>& effects,
                                                     const LoopScales& scales,
                                                     const ParameterValues& reference);
