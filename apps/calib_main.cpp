@@ -55,6 +55,11 @@ void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* inte
   cmd->add_flag("--outline-contact", settings->simulation.outline_contact,
                 "obstacles keep out of the outline's edges, not only its nodes (job spec "
                 "model.outline_contact)");
+  cmd->add_option("--contact-friction", settings->simulation.contact_friction,
+                  "Coulomb friction between the obstacles and the object (job spec "
+                  "model.contact_friction; 0: frictionless)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   AddCacheOptions(cmd, cache_dir, no_cache);
   AddEffectsOption(cmd, settings);
 }

@@ -35,6 +35,7 @@ struct LoopCli {
   std::string cache_dir;
   bool no_cache = false;
   bool outline_contact = kDefaults.simulation.outline_contact;
+  double contact_friction = kDefaults.simulation.contact_friction;
   std::string integrator = calib::ToString(kDefaults.simulation.integrator);
   bool no_html = false;
   bool quiet = false;
@@ -99,6 +100,11 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
   cmd->add_flag("--outline-contact", cli->outline_contact,
                 "obstacles keep out of the outline's edges, not only its nodes (job spec "
                 "model.outline_contact)");
+  cmd->add_option("--contact-friction", cli->contact_friction,
+                  "Coulomb friction between the obstacles and the object in every calibration "
+                  "(job spec model.contact_friction; 0: frictionless)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_option("--integrator", cli->integrator,
                   "first_order (paper eq. 10) or implicit_first_order (the same, implicit in the "
                   "springs: stable at any stiffness, docs/loop.md)")
@@ -130,6 +136,7 @@ std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) 
   options.restarts = cli.restarts;
   options.write_html = !cli.no_html;
   options.simulation.outline_contact = cli.outline_contact;
+  options.simulation.contact_friction = cli.contact_friction;
   options.simulation.integrator = IntegratorKindFromString(cli.integrator);
   if (cli.no_cache) {
     options.preparation.cache_dir.clear();

@@ -119,6 +119,18 @@ CALIB_SCAN_TARGETS size_t FirstNodeWithin(const double* __restrict x, double cx,
 
 }  // namespace
 
+namespace {
+
+// The part of `motion` along the tangent of `normal`, shortened to at most
+// `limit`: what Coulomb friction undoes of a slide.
+Vec2 LimitedTangent(const Vec2& motion, const Vec2& normal, double limit) {
+  const Vec2 tangent = motion - motion.dot(normal) * normal;
+  const double length = tangent.norm();
+  return length <= limit ? tangent : Vec2(tangent * (limit / length));
+}
+
+}  // namespace
+
 int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inverse_weight,
                       std::span<Vec2> x, const SubstepStart& start) {
   static_assert(sizeof(Vec2) == 2 * sizeof(double));
@@ -139,22 +151,31 @@ int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inver
       const Vec2 d = x[i] - disc.centre;
       const double dist_sq = d.squaredNorm();
       if (dist_sq >= inner_sq || inverse_weight[i] == 0.0) continue;
-      if (start_known) {
+      Vec2 normal;
+      double depth;
+      const Vec2 from = start_known ? Vec2(start.x[i] - start.discs[k].centre) : Vec2::Zero();
+      const double from_norm = from.norm();
+      if (start_known && from_norm > 0.0 && !(d.dot(from) > 0.0)) {
         // Where the node was against the disc before the step (both may
         // have moved). Past the centre from there, the nearest way out is
         // the far side: go back the way it came instead.
-        const Vec2 from = start.x[i] - start.discs[k].centre;
-        const double from_norm = from.norm();
-        if (from_norm > 0.0 && !(d.dot(from) > 0.0)) {
-          const Vec2 u = from / from_norm;
-          x[i] += (disc.radius_px - u.dot(d)) * u;
-          ++moved;
-          continue;
-        }
+        normal = from / from_norm;
+        depth = disc.radius_px - normal.dot(d);
+        x[i] += depth * normal;
+      } else {
+        const double dist = std::sqrt(dist_sq);
+        x[i] = dist > 0.0 ? Vec2(disc.centre + d * (disc.radius_px / dist))
+                          : Vec2(disc.centre + Vec2(disc.radius_px, 0.0));
+        normal = dist > 0.0 ? Vec2(d / dist) : Vec2(1.0, 0.0);
+        depth = disc.radius_px - dist;
       }
-      const double dist = std::sqrt(dist_sq);
-      x[i] = dist > 0.0 ? Vec2(disc.centre + d * (disc.radius_px / dist))
-                        : Vec2(disc.centre + Vec2(disc.radius_px, 0.0));
+      if (start_known && start.friction > 0.0) {
+        // The node's slide along the surface relative to the disc since
+        // the start, undone up to friction x depth (along the tangent, so
+        // it stays outside).
+        const Vec2 slide = (x[i] - disc.centre) - from;
+        x[i] -= LimitedTangent(slide, normal, start.friction * depth);
+      }
       ++moved;
     }
   }
@@ -233,6 +254,17 @@ int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
         const double lambda = (r - s) / denom;
         x[a] += (lambda * wa) * n;
         x[b] += (lambda * wb) * n;
+        if (start_known && start.friction > 0.0) {
+          // The contact point's slide along the edge relative to the disc
+          // since the start, undone up to friction x depth, shared as the
+          // push was.
+          const Vec2 point = (1.0 - t) * x[a] + t * x[b];
+          const Vec2 point_start = (1.0 - t) * start.x[a] + t * start.x[b];
+          const Vec2 slide = (point - disc.centre) - (point_start - start.discs[d].centre);
+          const Vec2 undo = LimitedTangent(slide, n, start.friction * (r - s));
+          x[a] -= (wa / denom) * undo;
+          x[b] -= (wb / denom) * undo;
+        }
         ++moved;
       }
     }

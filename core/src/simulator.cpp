@@ -42,6 +42,11 @@ bool SimulationOptions::IsValid(std::string* error) const {
         "SimulationOptions::min_area_fraction = {}. Violated: 0 < min_area_fraction < 1.",
         min_area_fraction));
   }
+  if (!(std::isfinite(contact_friction) && contact_friction >= 0.0)) {
+    return fail(fmt::format(
+        "SimulationOptions::contact_friction = {}. Violated: finite and contact_friction >= 0.",
+        contact_friction));
+  }
   if (!(divergence_diameters > 0.0)) {
     return fail(fmt::format(
         "SimulationOptions::divergence_diameters = {}. Violated: divergence_diameters > 0.",
@@ -300,7 +305,7 @@ bool Simulator::ApplyConstraints() {
     // Against where the substep started: a step longer than a disc's
     // radius (stiff springs with the implicit step) is resolved back to the
     // side it came from, not out of the disc's far side.
-    const SubstepStart start{x_prev_, discs_start_};
+    const SubstepStart start{x_prev_, discs_start_, options_.contact_friction};
     const int edges_moved =
         options_.outline_contact
             ? ProjectBoundaryOutOfDiscs(mesh_, discs_, inverse_weight_, x_, start)

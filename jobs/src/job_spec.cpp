@@ -178,6 +178,9 @@ nlohmann::json ToJson(const JobSpec& spec) {
   // Written only when on: a job stored before the key existed (off) keeps
   // the same spec and resumes.
   if (m.simulation.outline_contact) out["model"]["outline_contact"] = true;
+  if (m.simulation.contact_friction != 0.0) {
+    out["model"]["contact_friction"] = m.simulation.contact_friction;
+  }
   out["parameters"] = json::array();
   for (const auto& p : spec.parameters) {
     if (p.searched()) {

@@ -103,6 +103,10 @@ void ReadModel(MapReader r, ModelSpec* m, const ModelCatalog& catalog) {
     r.Fail(r.KeyPath("constraint_iterations"), r.node()["constraint_iterations"], "must be >= 1");
   }
   r.Read("outline_contact", &sim.outline_contact);
+  r.Read("contact_friction", &sim.contact_friction);
+  if (!(std::isfinite(sim.contact_friction) && sim.contact_friction >= 0.0)) {
+    r.Fail(r.KeyPath("contact_friction"), r.node()["contact_friction"], "must be >= 0");
+  }
   r.Read("min_area_fraction", &sim.min_area_fraction);
   if (!(sim.min_area_fraction > 0.0 && sim.min_area_fraction < 1.0)) {
     r.Fail(r.KeyPath("min_area_fraction"), r.node()["min_area_fraction"], "must be in (0, 1)");

@@ -477,6 +477,7 @@ std::pair<ParameterValues, double> Loop::RunJob(const std::string& name,
                   {"integrator", ToString(sim.integrator)},
                   {"constraint_iterations", sim.constraint_iterations},
                   {"outline_contact", sim.outline_contact},
+                  {"contact_friction", sim.contact_friction},
                   {"min_area_fraction", sim.min_area_fraction},
                   {"divergence_diameters", sim.divergence_diameters},
                   {"segmentation",
@@ -926,10 +927,13 @@ LoopResult Loop::Run() {
                        : "the first from the box's centre, the others from seeded points of the box"));
   const SimulationOptions& sim = o_.simulation;
   report_.notes.push_back(fmt::format(
-      "simulation: {} integrator, {} substeps per frame, {}", ToString(sim.integrator),
+      "simulation: {} integrator, {} substeps per frame, {}, {}", ToString(sim.integrator),
       sim.substeps,
       sim.outline_contact ? "outline contact (obstacles keep out of the outline's edges and nodes)"
-                          : "node contact (obstacles keep out of the nodes, the paper's)"));
+                          : "node contact (obstacles keep out of the nodes, the paper's)",
+      sim.contact_friction > 0.0
+          ? fmt::format("contact friction {:g}", sim.contact_friction)
+          : std::string("frictionless contact")));
   for (const LoopRecording& r : recs_) {
     report_.notes.push_back(fmt::format("{}: segmentation noise {:.0f} px per frame ({} frames)",
                                         r.name, r.noise_px, r.prepared->scene.num_frames));

@@ -257,3 +257,96 @@ double WorstClearance(bool outline_contact) {
 
 }  // namespace
 }  // namespace calib
+
+namespace calib {
+namespace {
+
+// Contact friction (SubstepStart::friction): position-based Coulomb
+// friction between the discs and the object.
+
+// The component of v across n (2D cross product).
+double Across(const Vec2& v, const Vec2& n) { return v.x() * n.y() - v.y() * n.x(); }
+
+TEST(ContactFriction, ANodeSlidingOnADiscSticksWithinTheLimitAndSlidesLessBeyond) {
+  const std::vector<Disc> discs = {{Vec2(0.0, 0.0), 4.0}};
+  const std::vector<double> w = {1.0};
+  const std::vector<Vec2> start_x = {Vec2(0.0, -4.5)};  // above the disc
+  const Vec2 end(1.0, -3.5);                             // 1 px along, 1 px down: inside
+  const double dist = end.norm();
+  const double depth = 4.0 - dist;
+  const Vec2 normal = end / dist;
+  // Frictionless: radially onto the circle, the slide along it kept.
+  std::vector<Vec2> free_x = {end};
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, free_x, SubstepStart{start_x, discs, 0.0}), 1);
+  const Vec2 free_slide = free_x[0] - start_x[0];
+  const double free_tangent = std::abs(Across(free_slide, normal));
+  ASSERT_GT(free_tangent, 0.5);
+  // Strong friction: the slide along the surface is undone, only the push
+  // along the normal is left; the node is outside the disc.
+  std::vector<Vec2> stuck = {end};
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, stuck, SubstepStart{start_x, discs, 100.0}), 1);
+  EXPECT_NEAR(Across(stuck[0] - start_x[0], normal), 0.0, 1e-12);
+  EXPECT_GE(stuck[0].norm(), 4.0 - 1e-12);
+  // Weak friction: the slide is shortened by friction x depth.
+  const double mu = 0.5;
+  std::vector<Vec2> slid = {end};
+  EXPECT_EQ(ProjectOutOfDiscs(discs, w, slid, SubstepStart{start_x, discs, mu}), 1);
+  EXPECT_NEAR(std::abs(Across(slid[0] - start_x[0], normal)), free_tangent - mu * depth, 1e-12);
+  EXPECT_GE(slid[0].norm(), 4.0 - 1e-12);
+}
+
+TEST(ContactFriction, ADiscPressingANodeCarriesItAlong) {
+  // The disc moves 1 px right and 1 px up into a node resting on its top.
+  const std::vector<Disc> start_discs = {{Vec2(0.0, 0.0), 4.0}};
+  const std::vector<Disc> discs = {{Vec2(1.0, -1.0), 4.0}};
+  const std::vector<double> w = {1.0};
+  const std::vector<Vec2> start_x = {Vec2(0.0, -4.0)};
+  std::vector<Vec2> frictionless = start_x, gripped = start_x;
+  ProjectOutOfDiscs(discs, w, frictionless, SubstepStart{start_x, start_discs, 0.0});
+  ProjectOutOfDiscs(discs, w, gripped, SubstepStart{start_x, start_discs, 100.0});
+  // Without friction the node is pushed up and to the left, off the disc's
+  // top; gripped, it goes with the disc: against the disc it moved only
+  // along the push, not along the surface.
+  EXPECT_LT(frictionless[0].x(), 0.0);
+  EXPECT_GT(gripped[0].x(), 0.9);
+  const Vec2 normal = (start_x[0] - discs[0].centre).normalized();  // where it was pushed out
+  const Vec2 against = gripped[0] - discs[0].centre;
+  EXPECT_NEAR(Across(against - (start_x[0] - start_discs[0].centre), normal), 0.0, 1e-12);
+  EXPECT_GE(against.norm(), 4.0);
+}
+
+TEST(ContactFriction, AnEdgeIsDraggedAlongByADiscSlidingOverIt) {
+  const Mesh mesh = MakeGridMesh(2, 2, 20.0);
+  const std::vector<double> w(mesh.NumNodes(), 1.0);
+  const int a = NodeAt(mesh, 0, 0), b = NodeAt(mesh, 20, 0);
+  // The disc slid 5 px along the edge y = 0 and pressed 1 px into it at its
+  // middle.
+  const std::vector<Disc> start_discs = {{Vec2(5.0, -3.0), 3.0}};
+  const std::vector<Disc> discs = {{Vec2(10.0, -2.0), 3.0}};
+  const std::vector<Vec2> start_x = mesh.rest_positions;
+  for (double mu : {0.0, 2.0, 100.0}) {
+    std::vector<Vec2> x = mesh.rest_positions;
+    EXPECT_EQ(ProjectBoundaryOutOfDiscs(mesh, discs, w, x, SubstepStart{start_x, start_discs, mu}),
+              1);
+    // Pushed 1 px down as without friction; dragged along by friction x
+    // depth (2 px at mu 2), at most the whole 5 px slide.
+    const double drag = std::min(mu * 1.0, 5.0);
+    EXPECT_NEAR(x[a].y(), 1.0, 1e-12) << "mu " << mu;
+    EXPECT_NEAR(x[b].y(), 1.0, 1e-12) << "mu " << mu;
+    EXPECT_NEAR(x[a].x(), 0.0 + drag, 1e-12) << "mu " << mu;
+    EXPECT_NEAR(x[b].x(), 20.0 + drag, 1e-12) << "mu " << mu;
+  }
+}
+
+TEST(ContactFriction, ANegativeOrNonFiniteCoefficientIsNamed) {
+  for (double bad : {-0.1, std::numeric_limits<double>::infinity(), std::nan("")}) {
+    SimulationOptions options;
+    options.contact_friction = bad;
+    std::string error;
+    EXPECT_FALSE(options.IsValid(&error)) << bad;
+    EXPECT_NE(error.find("contact_friction"), std::string::npos) << error;
+  }
+}
+
+}  // namespace
+}  // namespace calib

@@ -12,6 +12,8 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <filesystem>
 #include <string>
 
@@ -75,48 +77,49 @@ int64_t PrintedScore(const std::string& out) {
   return at == std::string::npos ? -1 : std::stoll(out.substr(at + key.size()));
 }
 
-TEST(ScoreCli, OutlineContactReachesTheSimulation) {
-  const fs::path dir = testing::ScratchDir("score_cli_contact");
+// A simulation option of `calib score` reaches the simulation: the printed
+// score is that of RunScore with the option set, and differs from the
+// default's on push_centre at params_push.json.
+void ExpectOptionReachesTheSimulation(const std::string& name,
+                                      const std::vector<std::string>& flags,
+                                      const std::function<void(CommandSettings&)>& set) {
+  const fs::path dir = testing::ScratchDir("score_cli_" + name);
   const fs::path recording = kExamples / "push_centre";
   const fs::path params = kExamples / "params_push.json";
-  const std::string cache = (dir / "cache").string();
-  const auto node = testing::RunProcess(
-      {kCalib, "score", recording.string(), "--params", params.string(), "--cache-dir", cache}, dir);
-  const auto outline = testing::RunProcess({kCalib, "score", recording.string(), "--params",
-                                            params.string(), "--cache-dir", cache,
-                                            "--outline-contact"},
-                                           dir);
-  ASSERT_EQ(node.exit_code, 0) << node.err;
-  ASSERT_EQ(outline.exit_code, 0) << outline.err;
+  const std::vector<std::string> command = {kCalib,       "score",         recording.string(),
+                                            "--params",   params.string(), "--cache-dir",
+                                            (dir / "cache").string()};
+  std::vector<std::string> with_option = command;
+  with_option.insert(with_option.end(), flags.begin(), flags.end());
+  const auto plain = testing::RunProcess(command, dir);
+  const auto option = testing::RunProcess(with_option, dir);
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  ASSERT_EQ(option.exit_code, 0) << option.err;
   CommandSettings settings;
   settings.preparation.cache_dir = dir / "cache";
-  settings.simulation.outline_contact = true;
+  set(settings);
   const EvaluationResult expected = RunScore(recording, params, settings);
-  EXPECT_EQ(PrintedScore(outline.out), expected.xor_sum);
+  EXPECT_EQ(PrintedScore(option.out), expected.xor_sum) << name;
+  EXPECT_NE(PrintedScore(plain.out), PrintedScore(option.out)) << name;
+}
+
+TEST(ScoreCli, OutlineContactReachesTheSimulation) {
   // The 7 px finger and the pencil slip between the 20 px mesh's nodes:
   // keeping them out of the edges changes the score.
-  EXPECT_NE(PrintedScore(node.out), PrintedScore(outline.out));
+  ExpectOptionReachesTheSimulation("contact", {"--outline-contact"}, [](CommandSettings& s) {
+    s.simulation.outline_contact = true;
+  });
 }
 
 TEST(ScoreCli, ImplicitIntegratorReachesTheSimulation) {
-  const fs::path dir = testing::ScratchDir("score_cli_implicit");
-  const fs::path recording = kExamples / "push_centre";
-  const fs::path params = kExamples / "params_push.json";
-  const std::string cache = (dir / "cache").string();
-  const auto explicit_run = testing::RunProcess(
-      {kCalib, "score", recording.string(), "--params", params.string(), "--cache-dir", cache}, dir);
-  const auto implicit_run =
-      testing::RunProcess({kCalib, "score", recording.string(), "--params", params.string(),
-                           "--cache-dir", cache, "--integrator", "implicit_first_order"},
-                          dir);
-  ASSERT_EQ(explicit_run.exit_code, 0) << explicit_run.err;
-  ASSERT_EQ(implicit_run.exit_code, 0) << implicit_run.err;
-  CommandSettings settings;
-  settings.preparation.cache_dir = dir / "cache";
-  settings.simulation.integrator = IntegratorKind::kImplicitFirstOrder;
-  const EvaluationResult expected = RunScore(recording, params, settings);
-  EXPECT_EQ(PrintedScore(implicit_run.out), expected.xor_sum);
-  EXPECT_NE(PrintedScore(explicit_run.out), PrintedScore(implicit_run.out));
+  ExpectOptionReachesTheSimulation(
+      "implicit", {"--integrator", "implicit_first_order"},
+      [](CommandSettings& s) { s.simulation.integrator = IntegratorKind::kImplicitFirstOrder; });
+}
+
+TEST(ScoreCli, ContactFrictionReachesTheSimulation) {
+  ExpectOptionReachesTheSimulation("friction", {"--contact-friction", "0.5"},
+                                   [](CommandSettings& s) { s.simulation.contact_friction = 0.5; });
 }
 
 TEST(LoopCli, AnIntegratorItCannotUseIsNamed) {

@@ -28,6 +28,7 @@ model:
   integrator: verlet
   constraint_iterations: 6
   outline_contact: true
+  contact_friction: 0.4
   segmentation: {open_radius_px: 2, close_radius_px: 3, fill_holes: false}
   mesh: {edge_length_px: 18.5}
 parameters:
@@ -90,6 +91,7 @@ TEST(JobSpec, ValidSpecIsReadCompletely) {
   EXPECT_EQ(spec.model.simulation.integrator, IntegratorKind::kVerlet);
   EXPECT_EQ(spec.model.simulation.constraint_iterations, 6);
   EXPECT_TRUE(spec.model.simulation.outline_contact);
+  EXPECT_EQ(spec.model.simulation.contact_friction, 0.4);
   EXPECT_EQ(spec.model.preparation.segmentation.open_radius_px, 2);
   EXPECT_FALSE(spec.model.preparation.segmentation.fill_holes);
   EXPECT_EQ(spec.model.preparation.mesher.edge_length_px, 18.5);
@@ -150,6 +152,8 @@ budget: {evaluations: 30}
   // Off is the default and left out of the canonical JSON, so that jobs
   // stored before the key existed resume with the same spec.
   EXPECT_FALSE(ToJson(spec)["model"].contains("outline_contact"));
+  EXPECT_EQ(spec.model.simulation.contact_friction, 0.0);
+  EXPECT_FALSE(ToJson(spec)["model"].contains("contact_friction"));
   EXPECT_EQ(spec.seed, 1u);
   EXPECT_EQ(spec.threads, 0);
   EXPECT_EQ(spec.optimizer.settings["maxeval"], 30);
@@ -304,6 +308,8 @@ TEST(JobSpec, OtherRulesAreNamed) {
                   "model.substeps = '0': must be >= 1");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["outline_contact"] = "sometimes"; }),
                   "model.outline_contact");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["contact_friction"] = -0.5; }),
+                  "model.contact_friction = '-0.5': must be >= 0");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["integrator"] = "rk4"; }),
                   "model.integrator = 'rk4': must be first_order or verlet");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["effects"].push_back("magnetism"); }),

@@ -18,6 +18,12 @@ namespace calib {
 struct SubstepStart {
   std::span<const Vec2> x;
   std::span<const Disc> discs;
+  /// Coulomb friction between the discs and the object, position-based:
+  /// where a node or an edge point is pushed out of a disc by d, its motion
+  /// along the disc's surface relative to the disc over the substep is
+  /// undone up to `friction` x d (all of it: it sticks). 0: frictionless,
+  /// the paper's contact. Needs the start.
+  double friction = 0.0;
 };
 
 /// Moves every movable node that lies inside a disc radially onto its

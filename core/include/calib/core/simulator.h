@@ -35,6 +35,10 @@ struct SimulationOptions {
   /// presses a dent as wide as its contact instead of slipping between two
   /// boundary nodes. Off: the paper's node-only contact.
   bool outline_contact = false;
+  /// Coulomb friction between the obstacles and the object (SubstepStart::
+  /// friction): a squeezed object does not slide round the discs. >= 0;
+  /// 0: frictionless, the paper's contact.
+  double contact_friction = 0.0;
   /// Triangles are kept above this fraction of their rest area.
   double min_area_fraction = 0.05;
   /// A node farther than this many mesh diameters from the rest centroid
