@@ -129,6 +129,9 @@ json ToJson(const ReportStage& s) {
                          {"holdout_xor_median", g.holdout_xor_median},
                          {"holdout_iou_at_min", Number(g.holdout_iou_at_min)}};
   }
+  if (s.holdout_sensitivity_px > 0.0) {
+    j["holdout_sensitivity_px"] = Number(s.holdout_sensitivity_px);
+  }
   if (!s.restart_training_xor.empty()) {
     json restarts = json::array();
     for (double x : s.restart_training_xor) restarts.push_back(Number(x));
@@ -172,6 +175,12 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
     s.equally_good.holdout_xor_max = g.Int("holdout_xor_max");
     s.equally_good.holdout_xor_median = g.Int("holdout_xor_median");
     s.equally_good.holdout_iou_at_min = g.Num("holdout_iou_at_min");
+  }
+  if (j.contains("holdout_sensitivity_px")) {  // optional: measured with held-out recordings
+    s.holdout_sensitivity_px = in.Num("holdout_sensitivity_px");
+    if (!(s.holdout_sensitivity_px >= 0.0)) {
+      Bad(in.Path("holdout_sensitivity_px"), "expected a number >= 0");
+    }
   }
   if (j.contains("restart_training_xor")) {  // optional: calibrations from scratch only
     const json& restarts = in.Array("restart_training_xor");

@@ -88,6 +88,7 @@ LoopReport MakeReport(const fs::path& dir) {
   base.calibration_time_s = 3.0;
   base.equally_good = {9, 450.0, 1150, 1420, 1260, 0.91};
   base.restart_training_xor = {2100.0, 1000.0, 1003.0};
+  base.holdout_sensitivity_px = 12.5;
 
   ReportStage plastic = base;
   plastic.restart_training_xor.clear();
@@ -156,6 +157,9 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   // The base model's independent searches, where there were several.
   EXPECT_EQ(doc["stages"][0]["restart_training_xor"], nlohmann::json::array({2100.0, 1000.0, 1003.0}));
   EXPECT_FALSE(doc["stages"][1].contains("restart_training_xor"));
+  EXPECT_EQ(doc["stages"][0]["holdout_sensitivity_px"], 12.5);
+  EXPECT_EQ(back.stages[0].holdout_sensitivity_px, 12.5);
+  EXPECT_EQ(back.stages[1].holdout_sensitivity_px, 12.5);  // copied from base above
   // Hypotheses with their evidence.
   const auto& first = doc["rounds"][0]["hypotheses"][0];
   EXPECT_TRUE(first.contains("confidence"));
@@ -188,6 +192,9 @@ TEST(LoopReport, MalformedJsonNamesTheKey) {
   doc = ToJson(MakeReport(dir));
   doc["stages"][0]["equally_good"].erase("holdout_xor_median");
   EXPECT_NE(Rejection(doc).find("stages[0].equally_good.holdout_xor_median"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][0]["holdout_sensitivity_px"] = -1.0;
+  EXPECT_NE(Rejection(doc).find("stages[0].holdout_sensitivity_px"), std::string::npos) << Rejection(doc);
   doc = ToJson(MakeReport(dir));
   doc["stages"][0]["restart_training_xor"][1] = "low";
   EXPECT_NE(Rejection(doc).find("stages[0].restart_training_xor[1]"), std::string::npos) << Rejection(doc);
