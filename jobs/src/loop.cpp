@@ -377,6 +377,9 @@ class Loop {
   void Measure(Fit* fit) const;
   void MeasureEquallyGood(Fit* fit) const;
   void MeasureSensitivity(Fit* fit) const;
+  std::vector<int> HeldOutIndices() const;
+  std::vector<EvaluationResult> ScoreOnHeldOut(const std::vector<ParameterValues>& sets,
+                                               const std::vector<std::string>& effects) const;
   ReportStage MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const;
   void AddResiduals(const Fit& fit);
   void AddOverlays(const Fit& fit, const std::string& stage);
@@ -650,6 +653,36 @@ void Loop::Measure(Fit* fit) const {
 
 // Re-scores the fit's equally good parameter sets on the held-out
 // recordings (nothing without held-out recordings or with the option 0).
+std::vector<int> Loop::HeldOutIndices() const {
+  std::vector<int> held;
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    if (!recs_[r].train) held.push_back(static_cast<int>(r));
+  }
+  return held;
+}
+
+// Every parameter set of `sets` on every held-out recording, in parallel:
+// result i is set i / H on held-out recording i % H (H held-out recordings).
+// A set the model rejects is a failed result.
+std::vector<EvaluationResult> Loop::ScoreOnHeldOut(const std::vector<ParameterValues>& sets,
+                                                   const std::vector<std::string>& effects) const {
+  const std::vector<int> held = HeldOutIndices();
+  const int n = static_cast<int>(sets.size() * held.size());
+  std::vector<EvaluationResult> results(n);
+  const ModelDefinition model{effects};
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, std::min(threads_, n)))
+  for (int i = 0; i < n; ++i) {
+    const LoopRecording& rec = recs_[held[i % held.size()]];
+    try {
+      Evaluator evaluator(*rec.prepared, o_.simulation, model);
+      results[i] = evaluator.Evaluate(sets[i / held.size()]);
+    } catch (const std::exception&) {
+      results[i].status = EvaluationStatus::kFailed;
+    }
+  }
+  return results;
+}
+
 // A model's held-out error is a number only as far as it does not hang on
 // digits the calibration cannot resolve: where contacts switch between
 // sticking and sliding (a stiff mesh with contact friction), moving every
@@ -660,10 +693,7 @@ void Loop::Measure(Fit* fit) const {
 // simulate makes the whole held-out sum the floor.
 void Loop::MeasureSensitivity(Fit* fit) const {
   if (!HasHoldout()) return;
-  std::vector<int> held;
-  for (size_t r = 0; r < recs_.size(); ++r) {
-    if (!recs_[r].train) held.push_back(static_cast<int>(r));
-  }
+  const std::vector<int> held = HeldOutIndices();
   std::vector<ParameterValues> nudged(kSensitivityNudges, fit->values);
   for (int k = 0; k < kSensitivityNudges; ++k) {
     const std::vector<double> u = RestartStart(static_cast<int>(fit->values.size()),
@@ -671,19 +701,8 @@ void Loop::MeasureSensitivity(Fit* fit) const {
     size_t j = 0;
     for (auto& [name, value] : nudged[k]) value *= 1.0 + (u[j++] < 0.5 ? -1.0 : 1.0) * kSensitivityNudge;
   }
-  const int n = static_cast<int>(nudged.size() * held.size());
-  std::vector<EvaluationResult> results(n);
-  const ModelDefinition model{fit->effects};
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, std::min(threads_, n)))
-  for (int i = 0; i < n; ++i) {
-    const LoopRecording& rec = recs_[held[i % held.size()]];
-    try {
-      Evaluator evaluator(*rec.prepared, o_.simulation, model);
-      results[i] = evaluator.Evaluate(nudged[i / held.size()]);
-    } catch (const std::exception&) {
-      results[i].status = EvaluationStatus::kFailed;  // a value nudged out of its range
-    }
-  }
+  // A value nudged out of its range fails like a simulation.
+  const std::vector<EvaluationResult> results = ScoreOnHeldOut(nudged, fit->effects);
   const double at_fit = static_cast<double>(fit->XorSum(recs_, false));
   double worst = 0.0;
   for (int k = 0; k < kSensitivityNudges; ++k) {
@@ -714,23 +733,8 @@ void Loop::MeasureEquallyGood(Fit* fit) const {
   // starting point, which no job recorded); Measure scored it already.
   std::erase(sets, fit->values);
 
-  std::vector<int> held;
-  for (size_t r = 0; r < recs_.size(); ++r) {
-    if (!recs_[r].train) held.push_back(static_cast<int>(r));
-  }
-  const int n = static_cast<int>(sets.size() * held.size());
-  std::vector<EvaluationResult> results(n);
-  const ModelDefinition model{fit->effects};
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, std::min(threads_, n)))
-  for (int i = 0; i < n; ++i) {
-    const LoopRecording& rec = recs_[held[i % held.size()]];
-    try {
-      Evaluator evaluator(*rec.prepared, o_.simulation, model);
-      results[i] = evaluator.Evaluate(sets[i / held.size()]);
-    } catch (const std::exception&) {
-      results[i].status = EvaluationStatus::kFailed;  // counted out below
-    }
-  }
+  const std::vector<int> held = HeldOutIndices();
+  const std::vector<EvaluationResult> results = ScoreOnHeldOut(sets, fit->effects);  // failures counted out below
   EquallyGoodFits g;
   g.training_tolerance_px = tolerance;
   std::vector<int64_t> sums;
