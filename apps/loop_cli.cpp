@@ -97,9 +97,9 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
                   "overlay frames per recording at the worst moments (base and final model)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  cmd->add_flag("--outline-contact", cli->outline_contact,
+  cmd->add_flag("--outline-contact,!--node-contact", cli->outline_contact,
                 "obstacles keep out of the outline's edges, not only its nodes (job spec "
-                "model.outline_contact)");
+                "model.outline_contact; the default); --node-contact: the paper's, nodes only");
   cmd->add_option("--contact-friction", cli->contact_friction,
                   "Coulomb friction between the obstacles and the object in every calibration "
                   "(job spec model.contact_friction; 0: frictionless)")

@@ -113,6 +113,14 @@ double Finite(double v, double fallback) { return std::isfinite(v) && v > 0.0 ? 
 
 }  // namespace
 
+SimulationOptions LoopSimulationDefaults() {
+  SimulationOptions o;
+  o.integrator = IntegratorKind::kImplicitFirstOrder;
+  o.outline_contact = true;
+  o.contact_friction = 0.5;
+  return o;
+}
+
 double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass) {
   double speed = 0.0;
   for (int f = 1; f < scene.num_frames; ++f) {

@@ -11,10 +11,11 @@
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
-
-#include <functional>
+#include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <string>
 
 namespace calib {
@@ -133,6 +134,36 @@ TEST(LoopCli, AnIntegratorItCannotUseIsNamed) {
   EXPECT_HAS(r.err + r.out, "--integrator");
   EXPECT_HAS(r.err + r.out, "verlet");
   EXPECT_FALSE(fs::exists(dir / "out" / "report.json"));
+}
+
+// The loop's default simulation is the implicit step with outline contact
+// and contact friction; the flags give back the paper's, and the report
+// says which one ran.
+TEST(LoopCli, ThePapersSimulationCanBeAskedFor) {
+  const fs::path dir = testing::ScratchDir("loop_cli_paper");
+  const std::vector<std::string> common = {
+      kCalib,      "loop",      "--train", (kExamples / "push_centre").string(), "--budget", "12",
+      "--restarts", "1",        "--max-effects", "0", "--overlays", "0", "--no-html",
+      "--cache-dir", (dir / "cache").string()};
+  auto notes = [&](const std::string& out, std::vector<std::string> flags) {
+    std::vector<std::string> command = common;
+    command.push_back("--out");
+    command.push_back((dir / out).string());
+    command.insert(command.end(), flags.begin(), flags.end());
+    const auto r = testing::RunProcess(command, dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    std::ifstream in(dir / out / "report.json");
+    return nlohmann::json::parse(in).at("notes").dump();
+  };
+  const std::string fallback = notes("default", {});
+  EXPECT_HAS(fallback, "implicit_first_order integrator");
+  EXPECT_HAS(fallback, "outline contact");
+  EXPECT_HAS(fallback, "contact friction 0.5");
+  const std::string paper = notes(
+      "paper", {"--integrator", "first_order", "--node-contact", "--contact-friction", "0"});
+  EXPECT_HAS(paper, "first_order integrator");
+  EXPECT_HAS(paper, "node contact");
+  EXPECT_HAS(paper, "frictionless contact");
 }
 
 }  // namespace

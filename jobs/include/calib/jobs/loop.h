@@ -35,6 +35,12 @@
 
 namespace calib {
 
+/// The loop's simulation: the first-order step implicit in the springs
+/// (stable at the stiffness of a quasi-static push), obstacles kept out of
+/// the outline's edges, contact friction 0.5 (docs/loop.md, "The model the
+/// loop calibrates").
+SimulationOptions LoopSimulationDefaults();
+
 struct LoopOptions {
   std::vector<std::filesystem::path> train;    ///< >= 1 recording folders (fitted)
   std::vector<std::filesystem::path> holdout;  ///< recording folders (decide, never fitted)
@@ -73,7 +79,7 @@ struct LoopOptions {
   /// its equally good fits. A flat or two-basin training error lands one
   /// search in the worse basin as often as not (docs/loop.md).
   int restarts = 3;
-  SimulationOptions simulation;
+  SimulationOptions simulation = LoopSimulationDefaults();
   PreparationOptions preparation;
   /// Report: overlay PNGs of the worst frames (base and final model).
   int overlays_per_recording = 2;
