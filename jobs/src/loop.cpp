@@ -104,9 +104,12 @@ ParameterSetting Fixed(const std::string& name, double value) {
 // stiffness / mass ratios matter.
 constexpr double kLoopMass = 0.2;
 
-// Loop::MeasureSensitivity: nudges of every value by this relative amount.
+// Loop::MeasureSensitivity: nudges of every value by this relative amount,
+// their signs drawn (by RestartStart) from the loop's seed plus this offset,
+// a stream apart from the restarts'.
 constexpr int kSensitivityNudges = 4;
 constexpr double kSensitivityNudge = 1e-3;
+constexpr uint64_t kSensitivitySeedOffset = 7919;
 
 double Finite(double v, double fallback) { return std::isfinite(v) && v > 0.0 ? v : fallback; }
 
@@ -705,7 +708,7 @@ void Loop::MeasureSensitivity(Fit* fit) const {
   std::vector<ParameterValues> nudged(kSensitivityNudges, fit->values);
   for (int k = 0; k < kSensitivityNudges; ++k) {
     const std::vector<double> u = RestartStart(static_cast<int>(fit->values.size()),
-                                               o_.seed + 7919, k + 1);  // in [0.1, 0.9]
+                                               o_.seed + kSensitivitySeedOffset, k + 1);  // in [0.1, 0.9]
     size_t j = 0;
     for (auto& [name, value] : nudged[k]) value *= 1.0 + (u[j++] < 0.5 ? -1.0 : 1.0) * kSensitivityNudge;
   }
