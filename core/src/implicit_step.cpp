@@ -137,9 +137,21 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   diagonal_.resize(m);
   for (int k = 0; k < m; ++k) diagonal_[k] = position(k, k);
 
+  unknown_of_coordinate_.assign(2 * static_cast<size_t>(n), -1);
+  for (int k = 0; k < m; ++k) unknown_of_coordinate_[coordinate_of_unknown_[k]] = k;
+
   factor_.analyzePattern(A_);
   rhs_.setZero(m);
   solution_.setZero(m);
+  turn_.setZero(m);
+  inverse_turn_.setZero(m);
+  step_.setZero(m);
+  column_.setZero(m);
+  inverse_column_of_unknown_.assign(m, -1);
+  inverse_columns_.reserve(static_cast<size_t>(m) *
+                           std::min(m, 4 * kMaxActiveContacts));  // a finger's and a pencil's
+  normal_response_.setZero(m, kMaxActiveContacts);
+  tangent_response_.setZero(m, kMaxActiveContacts);
 }
 
 bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
@@ -152,6 +164,9 @@ bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
   }
   const double mass_over_h = params.mass / h;
   h_over_m_ = h / params.mass;
+  // The cached columns of A^-1 belong to the old matrix.
+  std::fill(inverse_column_of_unknown_.begin(), inverse_column_of_unknown_.end(), -1);
+  inverse_columns_.clear();
   for (int p : diagonal_) a[p] += mass_over_h;
   if (A_.rows() == 0) return true;
   factor_.factorize(A_);
@@ -167,62 +182,267 @@ bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
   return true;
 }
 
-void ImplicitFirstOrderStep::Step(std::span<const Vec2> f, std::span<Vec2> x) {
+namespace {
+
+Vec2 Tangent(const Vec2& normal) { return Vec2(-normal.y(), normal.x()); }
+
+}  // namespace
+
+void ImplicitFirstOrderStep::SetTurn(std::span<const Vec2> x) {
+  turn_.setZero();
+  turn_norm_sq_ = 0.0;
+  if (free_turn_ == FreeTurn::kNone) return;
+  // t_i = perp(x_i - pivot) over the movable nodes (centred on their
+  // centroid for an unclamped mesh, hence orthogonal to the translations).
+  Vec2 pivot = Vec2::Zero();
+  if (free_turn_ == FreeTurn::kPivot) {
+    pivot = x[pivot_];
+  } else {
+    for (const Vec2& p : x) pivot += p;
+    pivot /= static_cast<double>(x.size());
+  }
+  for (int k = 0; k < num_unknowns(); ++k) {
+    const int c = coordinate_of_unknown_[k];
+    const Vec2 r = x[c / 2] - pivot;
+    turn_[k] = c % 2 == 0 ? -r.y() : r.x();
+  }
+  turn_norm_sq_ = turn_.squaredNorm();
+}
+
+void ImplicitFirstOrderStep::FinishResponse(double g_dot_turn, Eigen::Ref<Eigen::VectorXd> y) const {
+  if (!(turn_norm_sq_ > 0.0)) return;
+  // y solves for the force without its turn; the body turns by h / m times
+  // the turn's share instead of y's own turn (the turn field is that of the
+  // positions before the step).
+  const double turn_rate = g_dot_turn / turn_norm_sq_;
+  const double solved_turn = y.dot(turn_) / turn_norm_sq_;
+  y += (h_over_m_ * turn_rate - solved_turn) * turn_;
+}
+
+void ImplicitFirstOrderStep::Step(std::span<const Vec2> f, std::span<Vec2> x,
+                                  std::span<const StepContact> contacts, double friction) {
   const int m = num_unknowns();
   if (m == 0) return;
-  // The free turn at the current shape: t_i = perp(x_i - pivot) over the
-  // movable nodes (centred on their centroid for an unclamped mesh, hence
-  // orthogonal to the translations). Its share of f moves the body as the
-  // explicit step does; the rest is solved and keeps no turn.
-  double turn_rate = 0.0, turn_norm_sq = 0.0;
-  Vec2 pivot = Vec2::Zero();
-  const size_t n = x.size();
-  const auto turn = [&](size_t i) {
-    const Vec2 r = x[i] - pivot;
-    return Vec2(-r.y(), r.x());
-  };
-  if (free_turn_ != FreeTurn::kNone) {
-    if (free_turn_ == FreeTurn::kPivot) {
-      pivot = x[pivot_];
-    } else {
-      for (size_t i = 0; i < n; ++i) pivot += x[i];
-      pivot /= static_cast<double>(n);
-    }
-    for (size_t i = 0; i < n; ++i) {
-      if (movable_[i] == 0.0) continue;
-      const Vec2 t = turn(i);
-      turn_rate += f[i].dot(t);
-      turn_norm_sq += t.squaredNorm();
-    }
-    turn_rate = turn_norm_sq > 0.0 ? turn_rate / turn_norm_sq : 0.0;
-  }
+  SetTurn(x);
   for (int k = 0; k < m; ++k) {
     const int c = coordinate_of_unknown_[k];
-    const size_t i = static_cast<size_t>(c / 2);
-    rhs_[k] = f[i][c % 2] - (turn_rate != 0.0 ? turn_rate * turn(i)[c % 2] : 0.0);
+    rhs_[k] = f[c / 2][c % 2];
   }
+  const double f_dot_turn = turn_norm_sq_ > 0.0 ? rhs_.dot(turn_) : 0.0;
+  if (f_dot_turn != 0.0) rhs_ -= (f_dot_turn / turn_norm_sq_) * turn_;
   solution_ = factor_.solve(rhs_);
-  double solved_turn = 0.0;
-  if (turn_norm_sq > 0.0) {
-    for (int k = 0; k < m; ++k) {
-      const int c = coordinate_of_unknown_[k];
-      solved_turn += solution_[k] * turn(static_cast<size_t>(c / 2))[c % 2];
-    }
-    solved_turn /= turn_norm_sq;
-  }
-  // The turn field is that of the positions before the step: add the kept
-  // turn to the solution first, then move the nodes.
-  if (turn_norm_sq > 0.0) {
-    const double kept_turn = h_over_m_ * turn_rate - solved_turn;
-    for (int k = 0; k < m; ++k) {
-      const int c = coordinate_of_unknown_[k];
-      solution_[k] += kept_turn * turn(static_cast<size_t>(c / 2))[c % 2];
-    }
+  FinishResponse(f_dot_turn, solution_);
+  const Eigen::VectorXd* dx = &solution_;
+  if (!contacts.empty()) {
+    ContactSolve(contacts, friction);
+    dx = &step_;
   }
   for (int k = 0; k < m; ++k) {
     const int c = coordinate_of_unknown_[k];
-    x[c / 2][c % 2] += solution_[k];
+    x[c / 2][c % 2] += (*dx)[k];
   }
+}
+
+const double* ImplicitFirstOrderStep::InverseColumn(int unknown) {
+  const size_t m = static_cast<size_t>(num_unknowns());
+  int& slot = inverse_column_of_unknown_[unknown];
+  if (slot < 0) {
+    slot = static_cast<int>(inverse_columns_.size() / m);
+    inverse_columns_.resize(inverse_columns_.size() + m);
+    rhs_.setZero();  // free once the step's own solve is done
+    rhs_[unknown] = 1.0;
+    Eigen::Map<Eigen::VectorXd>(inverse_columns_.data() + slot * m, m) = factor_.solve(rhs_);
+  }
+  return inverse_columns_.data() + slot * m;
+}
+
+template <class Visit>
+void ImplicitFirstOrderStep::ForEachUnknown(const StepContact& contact, const Vec2& direction,
+                                            Visit&& visit) const {
+  // The contact point's coordinates along `direction`: (unknown, weight x
+  // direction component), clamped nodes skipped.
+  for (int q = 0; q < 2; ++q) {
+    const int node = contact.nodes[q];
+    if (node < 0) continue;
+    for (int d = 0; d < 2; ++d) {
+      const int k = unknown_of_coordinate_[2 * node + d];
+      const double g = contact.weights[q] * direction[d];
+      if (k >= 0 && g != 0.0) visit(k, g);
+    }
+  }
+}
+
+void ImplicitFirstOrderStep::ResponseOf(const StepContact& contact, const Vec2& direction,
+                                        Eigen::Ref<Eigen::VectorXd> out) {
+  // A^-1 of the unit force along `direction` at the contact point, from the
+  // cached columns, less A^-1 of its turn: then as any force.
+  const int m = num_unknowns();
+  out.setZero();
+  double g_dot_turn = 0.0;
+  ForEachUnknown(contact, direction, [&](int k, double g) {
+    out += g * Eigen::Map<const Eigen::VectorXd>(InverseColumn(k), m);
+    g_dot_turn += g * turn_[k];
+  });
+  if (turn_norm_sq_ > 0.0 && g_dot_turn != 0.0) {
+    if (!inverse_turn_valid_) {
+      inverse_turn_ = factor_.solve(turn_);
+      inverse_turn_valid_ = true;
+    }
+    out -= (g_dot_turn / turn_norm_sq_) * inverse_turn_;
+  }
+  FinishResponse(g_dot_turn, out);
+}
+
+double ImplicitFirstOrderStep::Along(const StepContact& contact, const Vec2& direction,
+                                     const Eigen::VectorXd& dx) const {
+  double along = 0.0;
+  ForEachUnknown(contact, direction, [&](int k, double g) { along += g * dx[k]; });
+  return along;
+}
+
+namespace {
+
+// A contact is broken, or slides against its friction, by more than this.
+constexpr double kContactTolerancePx = 1e-9;
+
+}  // namespace
+
+void ImplicitFirstOrderStep::ContactSolve(std::span<const StepContact> contacts, double friction) {
+  // Active set: start from the free step; add the contacts it breaks (held
+  // as sticking when there is friction), solve for their forces, release a
+  // contact that pulls, let a sticking contact slide whose tangential force
+  // exceeds mu times its normal one and stop a sliding one that moves with
+  // its friction; repeat until nothing changes. Each round's system has one
+  // row per active contact's normal and per sticking contact's tangent.
+  const int num_contacts = static_cast<int>(contacts.size());
+  active_.clear();
+  active_of_contact_.assign(num_contacts, -1);
+  excluded_.assign(num_contacts, 0);
+  inverse_turn_valid_ = false;
+  step_ = solution_;
+  const auto tangent_target = [&](const StepContact& c) {
+    return Tangent(c.normal).dot(c.obstacle_step);
+  };
+  const auto remove = [&](int a) {
+    for (int b = a; b + 1 < static_cast<int>(active_.size()); ++b) {
+      active_[b] = active_[b + 1];
+      normal_response_.col(b) = normal_response_.col(b + 1);
+      tangent_response_.col(b) = tangent_response_.col(b + 1);
+    }
+    active_.pop_back();
+  };
+  const int max_rounds = 4 * kMaxActiveContacts;
+  for (int round = 0; round < max_rounds; ++round) {
+    bool changed = false;
+    for (int j = 0; j < num_contacts; ++j) {
+      if (active_of_contact_[j] >= 0 || excluded_[j] != 0) continue;
+      if (static_cast<int>(active_.size()) == kMaxActiveContacts) break;
+      const StepContact& c = contacts[j];
+      if (!(Along(c, c.normal, step_) - c.gap < -kContactTolerancePx)) continue;
+      const int a = static_cast<int>(active_.size());
+      active_.push_back(ActiveContact{j, friction > 0.0, 0.0, 0.0, 0.0});
+      active_of_contact_[j] = a;
+      ResponseOf(c, c.normal, normal_response_.col(a));
+      if (friction > 0.0) ResponseOf(c, Tangent(c.normal), tangent_response_.col(a));
+      changed = true;
+    }
+    if (!changed) {
+      // The contact pulling hardest is released.
+      int pulling = -1;
+      for (int a = 0; a < static_cast<int>(active_.size()); ++a) {
+        if (active_[a].normal_force < 0.0 &&
+            (pulling < 0 || active_[a].normal_force < active_[pulling].normal_force)) {
+          pulling = a;
+        }
+      }
+      if (pulling >= 0) {
+        active_of_contact_[active_[pulling].contact] = -1;
+        remove(pulling);
+        changed = true;
+      }
+    }
+    if (!changed && friction > 0.0) {
+      for (ActiveContact& a : active_) {
+        const StepContact& c = contacts[a.contact];
+        if (a.stick && std::abs(a.tangent_force) > friction * a.normal_force) {
+          a.stick = false;
+          a.slip_sign = a.tangent_force > 0.0 ? 1.0 : -1.0;
+          changed = true;
+        } else if (!a.stick &&
+                   a.slip_sign * (Along(c, Tangent(c.normal), step_) - tangent_target(c)) >
+                       kContactTolerancePx) {
+          a.stick = true;  // it would slide the way its friction pushes
+          changed = true;
+        }
+      }
+    }
+    if (!changed) break;
+    // A contact that repeats others (a node and the edge through it) makes
+    // the system singular: the newest is left to the projections.
+    while (!SolveActive(contacts, friction)) {
+      const int last = static_cast<int>(active_.size()) - 1;
+      excluded_[active_[last].contact] = 1;
+      active_of_contact_[active_[last].contact] = -1;
+      remove(last);
+    }
+  }
+}
+
+bool ImplicitFirstOrderStep::SolveActive(std::span<const StepContact> contacts, double friction) {
+  const int k = static_cast<int>(active_.size());
+  step_ = solution_;
+  if (k == 0) return true;
+  for (int a = 0; a < k; ++a) active_of_contact_[active_[a].contact] = a;
+  // Unknowns: each active contact's normal force, then each sticking
+  // contact's tangential force. A sliding contact's friction is slip_sign
+  // mu times its normal force, so its normal force's column carries it.
+  int rows = k;
+  for (int a = 0; a < k; ++a) tangent_row_[a] = active_[a].stick ? rows++ : -1;
+  const auto column = [&](int unknown) {
+    if (unknown < k) {
+      column_ = normal_response_.col(unknown);
+      const ActiveContact& a = active_[unknown];
+      if (!a.stick && friction > 0.0) {
+        column_ += (a.slip_sign * friction) * tangent_response_.col(unknown);
+      }
+    } else {
+      int a = 0;
+      while (tangent_row_[a] != unknown) ++a;
+      column_ = tangent_response_.col(a);
+    }
+  };
+  system_.resize(rows, rows);
+  system_rhs_.resize(rows);
+  for (int a = 0; a < k; ++a) {
+    const StepContact& c = contacts[active_[a].contact];
+    system_rhs_[a] = c.gap - Along(c, c.normal, solution_);
+    if (tangent_row_[a] >= 0) {
+      const Vec2 t = Tangent(c.normal);
+      system_rhs_[tangent_row_[a]] = t.dot(c.obstacle_step) - Along(c, t, solution_);
+    }
+  }
+  for (int u = 0; u < rows; ++u) {
+    column(u);
+    for (int a = 0; a < k; ++a) {
+      const StepContact& c = contacts[active_[a].contact];
+      system_(a, u) = Along(c, c.normal, column_);
+      if (tangent_row_[a] >= 0) system_(tangent_row_[a], u) = Along(c, Tangent(c.normal), column_);
+    }
+  }
+  lu_.compute(system_);
+  if (!lu_.isInvertible()) return false;
+  forces_ = lu_.solve(system_rhs_);
+  for (int u = 0; u < rows; ++u) {
+    column(u);
+    step_ += forces_[u] * column_;
+  }
+  for (int a = 0; a < k; ++a) {
+    ActiveContact& active = active_[a];
+    active.normal_force = forces_[a];
+    active.tangent_force =
+        active.stick ? forces_[tangent_row_[a]] : active.slip_sign * friction * forces_[a];
+  }
+  return true;
 }
 
 Eigen::SparseMatrix<double> ImplicitFirstOrderStep::Stiffness(const ModelParameters& params) const {

@@ -109,6 +109,14 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
   }
   if (options.integrator == IntegratorKind::kImplicitFirstOrder) {
     implicit_step_ = std::make_unique<ImplicitFirstOrderStep>(model_, inverse_weight_);
+    double edge_length = 0.0;
+    for (const auto& [i, j] : mesh.edges) edge_length += (mesh.rest_positions[j] - mesh.rest_positions[i]).norm();
+    if (!mesh.edges.empty()) edge_length /= static_cast<double>(mesh.edges.size());
+    snap_px_ = 0.5 * edge_length;
+    size_t boundary_edges = 0;
+    for (const std::vector<int>& loop : mesh.boundary_loops) boundary_edges += loop.size();
+    step_contacts_.reserve(static_cast<size_t>(scene.num_obstacles) *
+                           (static_cast<size_t>(mesh.NumNodes()) + boundary_edges));
   }
 }
 
@@ -176,6 +184,7 @@ void Simulator::ResetState() {
   std::copy(mesh_.rest_positions.begin(), mesh_.rest_positions.end(), x_prev_.begin());
   for (Vec2& v : v_) v.setZero();
   frame_ = 0;
+  last_step_px_ = 0.0;
   status_ = scene_.num_frames > 1 ? SimulationStatus::kRunning : SimulationStatus::kFinished;
   failure_reason_.clear();
   InterpolateObstacles(0.0);
@@ -243,12 +252,18 @@ bool Simulator::Substep(int substep) {
     }
   }
 
+  // The obstacles where the substep starts and where it ends.
+  std::copy(discs_.begin(), discs_.end(), discs_start_.begin());
+  InterpolateObstacles(static_cast<double>(substep + 1) / options_.substeps);
+
   if (second_order_) {
     std::copy(x_.begin(), x_.end(), x_prev_.begin());
     StepDampedSecondOrder(h, second_order_damping_per_s_, params_.mass);
   } else if (implicit_) {
     std::copy(x_.begin(), x_.end(), x_prev_.begin());
-    implicit_step_->Step(f_, x_);
+    GatherStepContacts();
+    implicit_step_->Step(f_, x_, step_contacts_, options_.contact_friction);
+    if (!CheckImplicitStep(substep)) return false;
   } else if (options_.integrator == IntegratorKind::kFirstOrder) {
     std::copy(x_.begin(), x_.end(), x_prev_.begin());
     StepFirstOrder(h / params_.mass, f_, inverse_weight_, x_);
@@ -272,14 +287,88 @@ bool Simulator::Substep(int substep) {
     }
   }
 
-  std::copy(discs_.begin(), discs_.end(), discs_start_.begin());
-  InterpolateObstacles(static_cast<double>(substep + 1) / options_.substeps);
   if (!ApplyConstraints()) return false;
 
   const double inv_h = 1.0 / h;
   for (int i = 0; i < n; ++i) v_[i] = (x_[i] - x_prev_[i]) * inv_h;
+  if (implicit_) {
+    double longest_sq = 0.0;
+    for (int i = 0; i < n; ++i) longest_sq = std::max(longest_sq, (x_[i] - x_prev_[i]).squaredNorm());
+    last_step_px_ = std::sqrt(longest_sq);
+  }
   for (EffectTerm* effect : after_substep_effects_) effect->AfterSubstep(x_, h);
   return true;
+}
+
+bool Simulator::CheckImplicitStep(int substep) {
+  // The mesh follows its obstacles and its load a fraction of a pixel a
+  // substep. A node the step moves by half an edge or more has snapped
+  // through: squeezed between obstacles, a mesh far stiffer in its edges
+  // and areas than in its angles stores the obstacles' work until it folds,
+  // then releases it in a few substeps (tens of pixels each) and ends with
+  // triangles turned over. Such a candidate follows no video; it fails
+  // here, with the node and the move, rather than by chance a few frames on.
+  for (size_t i = 0; i < x_.size(); ++i) {
+    const double move = (x_[i] - x_prev_[i]).norm();
+    if (move >= snap_px_) {
+      Fail(fmt::format(
+          "the implicit step moved node {} by {:.1f} px in one substep (substep {}), half a mesh "
+          "edge or more: the mesh snapped through",
+          i, move, substep));
+      return false;
+    }
+  }
+  return true;
+}
+
+void Simulator::GatherStepContacts() {
+  // Every node, and with outline contact every boundary edge, within reach
+  // of an obstacle where the substep ends: as far as the last substep moved
+  // a node, twice, plus the obstacle's own motion. The step holds those it
+  // would break; what it misses the projections catch.
+  step_contacts_.clear();
+  const int n = mesh_.NumNodes();
+  for (size_t k = 0; k < discs_.size(); ++k) {
+    const Vec2 c = discs_[k].centre;
+    const double r = discs_[k].radius_px;
+    const Vec2 motion = c - discs_start_[k].centre;
+    const double reach = r + 1.0 + 2.0 * last_step_px_ + motion.norm();
+    for (int i = 0; i < n; ++i) {
+      if (inverse_weight_[i] == 0.0) continue;
+      const Vec2 d = x_[i] - c;
+      const double dist = d.norm();
+      if (!(dist < reach && dist > 0.0)) continue;
+      StepContact contact;
+      contact.nodes = {i, -1};
+      contact.normal = d / dist;
+      contact.gap = r - dist;
+      contact.obstacle_step = motion;
+      step_contacts_.push_back(contact);
+    }
+    if (!options_.outline_contact) continue;
+    for (const std::vector<int>& loop : mesh_.boundary_loops) {
+      for (size_t e = 0, m = loop.size(); e < m; ++e) {
+        const int a = loop[e], b = loop[(e + 1) % m];
+        const Vec2 edge = x_[b] - x_[a];
+        const double len_sq = edge.squaredNorm();
+        if (!(len_sq > 0.0)) continue;
+        const double t = (c - x_[a]).dot(edge) / len_sq;
+        if (!(t > 0.0 && t < 1.0)) continue;  // nearest an end node: that node's contact
+        // The interior lies to the left of a -> b; s > 0: the centre is in
+        // front of the edge.
+        const Vec2 inward = Vec2(-edge.y(), edge.x()) / std::sqrt(len_sq);
+        const double s = inward.dot(x_[a] - c);
+        if (!(s > 0.0 && s < reach)) continue;
+        StepContact contact;
+        contact.nodes = {a, b};
+        contact.weights = {1.0 - t, t};
+        contact.normal = inward;
+        contact.gap = r - s;
+        contact.obstacle_step = motion;
+        step_contacts_.push_back(contact);
+      }
+    }
+  }
 }
 
 // The inertia effect's step from x (already copied to x_prev_) with the

@@ -303,5 +303,141 @@ TEST(ImplicitStep, SameInputSameBits) {
   for (int i = 0; i < mesh.NumNodes(); ++i) EXPECT_EQ(a.positions()[i], first[i]);
 }
 
+// Contacts in the step: a stiff grid (7 x 3 nodes) pressed against a disc
+// at the middle of its left side by a uniform force, every node a candidate
+// contact (as the simulator gathers them).
+struct PressedGrid {
+  Mesh mesh = MakeGridMesh(6, 2, 10.0, Vec2(100, 100));
+  Model model{mesh};
+  std::vector<double> movable = std::vector<double>(mesh.NumNodes(), 1.0);
+  ImplicitFirstOrderStep step{model, movable};
+  Disc disc{Vec2(92.0, 110.0), 8.0};  // touches node (100, 110)
+  std::vector<Vec2> x = mesh.rest_positions;
+
+  PressedGrid() {
+    ModelParameters p = Mixed();
+    p.k_distance *= 1e3;
+    p.k_area *= 1e3;
+    p.k_angle *= 1e3;
+    std::string error;
+    EXPECT_TRUE(step.Configure(p, 1.0 / 300.0, &error)) << error;
+  }
+
+  std::vector<StepContact> Contacts(const Vec2& disc_step) const {
+    std::vector<StepContact> contacts;
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      const Vec2 d = x[i] - disc.centre - disc_step;
+      StepContact c;
+      c.nodes = {i, -1};
+      c.normal = d.normalized();
+      c.gap = disc.radius_px - d.norm();
+      c.obstacle_step = disc_step;
+      contacts.push_back(c);
+    }
+    return contacts;
+  }
+
+  int NodeAt(const Vec2& p) const {
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      if ((x[i] - p).norm() < 1e-9) return i;
+    }
+    ADD_FAILURE() << "no node at " << p.transpose();
+    return 0;
+  }
+
+  // The step for a uniform force per node.
+  std::vector<Vec2> Moved(const Vec2& force, std::span<const StepContact> contacts,
+                          double friction) {
+    const std::vector<Vec2> f(mesh.NumNodes(), force);
+    std::vector<Vec2> moved = x;
+    step.Step(f, moved, contacts, friction);
+    return moved;
+  }
+};
+
+TEST(ImplicitStepContacts, AContactTheStepWouldBreakIsHeldOnItsTangentLine) {
+  PressedGrid grid;
+  const std::vector<StepContact> contacts = grid.Contacts(Vec2::Zero());
+  const Vec2 press(-30.0, 0.0);
+  const std::vector<Vec2> free = grid.Moved(press, {}, 0.0);
+  const std::vector<Vec2> held = grid.Moved(press, contacts, 0.0);
+  int broken_by_free = 0, on_the_line = 0;
+  for (const StepContact& c : contacts) {
+    const int i = c.nodes[0];
+    const double free_along = c.normal.dot(free[i] - grid.x[i]) - c.gap;
+    const double held_along = c.normal.dot(held[i] - grid.x[i]) - c.gap;
+    if (free_along < 0.0) ++broken_by_free;
+    EXPECT_GE(held_along, -1e-9) << "node " << i;
+    if (std::abs(held_along) < 1e-9) ++on_the_line;
+  }
+  ASSERT_GT(broken_by_free, 0) << "the free step should press a node into the disc";
+  EXPECT_GE(on_the_line, 1);
+  // The disc holds the whole stiff grid back, not only the node it touches.
+  double free_shift = 0.0, held_shift = 0.0;
+  for (int i = 0; i < grid.mesh.NumNodes(); ++i) {
+    free_shift += (free[i] - grid.x[i]).x();
+    held_shift += (held[i] - grid.x[i]).x();
+  }
+  EXPECT_LT(std::abs(held_shift), 0.5 * std::abs(free_shift));
+  for (int i = 0; i < grid.mesh.NumNodes(); ++i) {
+    EXPECT_GT((held[i] - grid.x[i]).x(), (free[i] - grid.x[i]).x()) << "node " << i;
+  }
+}
+
+TEST(ImplicitStepContacts, ContactsTheStepKeepsAnywayChangeNothing) {
+  // Pulled away from the disc, no contact pulls back: the step is the free
+  // one, bit for bit.
+  PressedGrid grid;
+  const std::vector<StepContact> contacts = grid.Contacts(Vec2::Zero());
+  const Vec2 pull(30.0, 5.0);
+  const std::vector<Vec2> free = grid.Moved(pull, {}, 0.0);
+  const std::vector<Vec2> with_contacts = grid.Moved(pull, contacts, 0.5);
+  for (int i = 0; i < grid.mesh.NumNodes(); ++i) EXPECT_EQ(free[i], with_contacts[i]) << i;
+}
+
+TEST(ImplicitStepContacts, FrictionCarriesThePressedPointWithTheDiscUpToCoulombsLimit) {
+  // The disc slides 0.5 px along the grid's side while pressing on it.
+  // Frictionless, the touching node slides along the disc (the other way:
+  // the disc's surface there tilts); with ample friction it moves with the
+  // disc; with little, part way, more with more friction.
+  PressedGrid grid;
+  const Vec2 disc_step(0.0, 0.5);
+  const std::vector<StepContact> contacts = grid.Contacts(disc_step);
+  const Vec2 press(-30.0, 0.0);
+  const int touching = grid.NodeAt(Vec2(100, 110));
+  const StepContact& contact = contacts[touching];
+  const Vec2 tangent(-contact.normal.y(), contact.normal.x());
+  // The node's slide along the disc relative to it.
+  const auto slide = [&](double friction) {
+    const Vec2 dx = grid.Moved(press, contacts, friction)[touching] - grid.x[touching];
+    return tangent.dot(dx - disc_step);
+  };
+  const double frictionless = slide(0.0), gripped = slide(100.0), some = slide(0.05);
+  EXPECT_GT(std::abs(frictionless), 0.5);
+  EXPECT_LT(std::abs(gripped), 1e-9);
+  EXPECT_LT(std::abs(some), std::abs(frictionless) - 0.01);
+  EXPECT_GT(std::abs(some), 0.01);
+  EXPECT_LT(std::abs(slide(0.1)), std::abs(some));
+}
+
+TEST(ImplicitStepContacts, ANodeThatJumpsHalfAnEdgeInOneSubstepFailsTheCandidateNamingIt) {
+  // A sudden load far beyond the springs (as a squeezed mesh snapping
+  // through releases): the step moves the loaded node by tens of pixels.
+  const Mesh mesh = MakeGridMesh(4, 2, 10.0, Vec2(100, 100));
+  const Scene scene = OneDiscScene(
+      5, 30.0, [](int) { return Disc{Vec2(300, 300), 1.0}; },
+      [](int f) { return f < 2 ? Vec2::Zero() : Vec2(1e5, 0.0); });
+  SimulationOptions options;
+  options.integrator = IntegratorKind::kImplicitFirstOrder;
+  Simulator sim(mesh, scene, options);
+  sim.Reset(Mixed());
+  while (sim.Advance()) {
+  }
+  ASSERT_EQ(sim.status(), SimulationStatus::kFailed);
+  EXPECT_NE(sim.failure_reason().find("moved node "), std::string::npos) << sim.failure_reason();
+  EXPECT_NE(sim.failure_reason().find("snapped through"), std::string::npos) << sim.failure_reason();
+  EXPECT_EQ(sim.failure_frame(), 2);
+}
+
 }  // namespace
 }  // namespace calib

@@ -38,20 +38,51 @@
 // node: about that node), moves the body by (h / m) times it, solves for
 // the rest and drops the solution's own turn. For small h that is still
 // x += (h / m) F.
+//
+// Obstacles: a stiff mesh's step is long where an obstacle holds it (the
+// springs would undo a finger's dent in one step), so projecting the nodes
+// out after the step makes them chatter by the dent's depth every substep
+// and throws the contact's friction between sticking and sliding. Step
+// therefore takes the contacts as constraints of the solve: each keeps a
+// node, or a point of a boundary edge, on the obstacle's side of its
+// tangent line (normal . dx >= gap, linearised at the step's start), and
+// with friction mu it also moves along the tangent with the obstacle while
+// the tangential force stays within mu times the normal one (Coulomb),
+// else slides against a force of mu times it. The multipliers are found
+// by an active-set iteration on the contacts' small dense system, whose
+// columns come from cached solves with the factor (per coordinate, reused
+// for the whole candidate): the step stays one solve plus a few vector
+// sums. What the linearisation leaves the simulator's projections put
+// right.
 
 #include "calib/core/mesh.h"
 #include "calib/core/model.h"
 #include "calib/core/parameters.h"
 #include "calib/core/types.h"
 
+#include <Eigen/LU>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
+#include <array>
 #include <span>
 #include <string>
 #include <vector>
 
 namespace calib {
+
+/// A contact the implicit step keeps: the point sum_k weights[k] x[nodes[k]]
+/// (a node, or a point of a boundary edge) moves along `normal` by at least
+/// `gap`. `normal` is unit and points the way the obstacle pushes;
+/// `obstacle_step` is the obstacle's motion over the step (the tangential
+/// motion a sticking contact follows).
+struct StepContact {
+  std::array<int, 2> nodes{-1, -1};  ///< nodes[1] = -1: a node contact
+  std::array<double, 2> weights{1.0, 0.0};
+  Vec2 normal = Vec2::UnitX();
+  double gap = 0.0;  ///< px
+  Vec2 obstacle_step = Vec2::Zero();
+};
 
 class ImplicitFirstOrderStep {
  public:
@@ -68,7 +99,17 @@ class ImplicitFirstOrderStep {
   /// x += dx for the forces `f` (#N, the springs without damping plus every
   /// explicit force) at the positions `x`; clamped nodes stay. After a
   /// successful Configure. Allocates nothing.
-  void Step(std::span<const Vec2> f, std::span<Vec2> x);
+  void Step(std::span<const Vec2> f, std::span<Vec2> x) { Step(f, x, {}, 0.0); }
+
+  /// As above, keeping the `contacts` (the candidates: those the step
+  /// would break become active, at most kMaxActiveContacts) with Coulomb
+  /// friction coefficient `friction` (>= 0). Allocates nothing once each
+  /// contact's coordinates have been seen since Configure.
+  void Step(std::span<const Vec2> f, std::span<Vec2> x, std::span<const StepContact> contacts,
+            double friction);
+
+  /// Contacts held by one step at most; others are left to the projections.
+  static constexpr int kMaxActiveContacts = 32;
 
   /// The stiffness K0 of `params` over all 2N coordinates (node i: rows 2i,
   /// 2i+1; zero rows and columns for clamped nodes), for tests.
@@ -81,6 +122,7 @@ class ImplicitFirstOrderStep {
 
   int num_coordinates_ = 0;           // 2 N
   std::vector<int> coordinate_of_unknown_;  // unknown k: coordinate coordinate_of_unknown_[k] (2 i + d)
+  std::vector<int> unknown_of_coordinate_;  // its inverse; -1 for clamped nodes
   // The unit matrices' values on A's pattern (A_ below), in its storage order.
   std::vector<double> distance_, area_, angle_, damping_;
   std::vector<int> diagonal_;  // index of each unknown's diagonal entry in A_'s values
@@ -88,6 +130,53 @@ class ImplicitFirstOrderStep {
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> factor_;
   Eigen::VectorXd rhs_, solution_;
   double h_over_m_ = 0.0;
+
+  // The free turn of this step's start over the unknowns (zero without one),
+  // its squared norm and A^-1 turn_.
+  Eigen::VectorXd turn_, inverse_turn_;
+  double turn_norm_sq_ = 0.0;
+  void SetTurn(std::span<const Vec2> x);
+  // The step's response to the force g over the unknowns (the turn split
+  // off, solved, kept as described above), given y = A^-1 (g) and
+  // g . turn_: linear in g.
+  void FinishResponse(double g_dot_turn, Eigen::Ref<Eigen::VectorXd> y) const;
+
+  // A^-1 e_k for the unknowns k the contacts touched since Configure.
+  std::vector<int> inverse_column_of_unknown_;  // slot, or -1
+  std::vector<double> inverse_columns_;         // slot s: [s m, (s + 1) m)
+  const double* InverseColumn(int unknown);
+
+  // The contacts' active set (ContactSolve in implicit_step.cpp).
+  struct ActiveContact {
+    int contact = 0;
+    bool stick = false;
+    double slip_sign = 0.0;  // sliding: the friction force's sign along the tangent
+    double normal_force = 0.0, tangent_force = 0.0;
+  };
+  std::vector<ActiveContact> active_;
+  std::vector<int> active_of_contact_;  // index into active_, or -1
+  std::vector<uint8_t> excluded_;       // contacts dropped for a singular system
+  // The step's response to a unit force along each active contact's normal
+  // and tangent (m rows, kMaxActiveContacts columns).
+  Eigen::MatrixXd normal_response_, tangent_response_;
+  Eigen::VectorXd step_, column_;  // the constrained step; a scratch column
+  bool inverse_turn_valid_ = false;
+  // The active contacts' system (fixed capacity: no allocation).
+  static constexpr int kMaxRows = 2 * kMaxActiveContacts;
+  using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxRows, kMaxRows>;
+  using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxRows, 1>;
+  SmallMatrix system_;
+  SmallVector system_rhs_, forces_;
+  Eigen::FullPivLU<SmallMatrix> lu_;
+  std::array<int, kMaxActiveContacts> tangent_row_{};
+  // Solves for the active contacts' forces and sets step_; false when the
+  // system is singular.
+  bool SolveActive(std::span<const StepContact> contacts, double friction);
+  template <class Visit>
+  void ForEachUnknown(const StepContact& contact, const Vec2& direction, Visit&& visit) const;
+  void ResponseOf(const StepContact& contact, const Vec2& direction, Eigen::Ref<Eigen::VectorXd> out);
+  double Along(const StepContact& contact, const Vec2& direction, const Eigen::VectorXd& dx) const;
+  void ContactSolve(std::span<const StepContact> contacts, double friction);
 
   // The rotation K0 leaves free (kFree: about the centroid, kPivot: about
   // the one clamped node, kNone: two or more clamped nodes hold the mesh).

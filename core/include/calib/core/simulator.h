@@ -138,6 +138,12 @@ class Simulator {
   void StartFromObservedMotion();
   void StepDampedSecondOrder(double h, double damping_per_s, double mass);
   void InterpolateObstacles(double alpha);
+  // The implicit step's candidate contacts (step_contacts_) at the start of
+  // a substep, against the obstacles where it ends (discs_).
+  void GatherStepContacts();
+  // Fails the candidate where the implicit step moved a node by snap_px_
+  // or more.
+  bool CheckImplicitStep(int substep);
   bool ApplyConstraints();
   bool FinishFrame();
   void Fail(std::string reason);
@@ -179,6 +185,9 @@ class Simulator {
   // the constructor), used unless an effect owns the dynamics.
   std::unique_ptr<ImplicitFirstOrderStep> implicit_step_;
   bool implicit_ = false;  // this candidate takes the implicit step
+  std::vector<StepContact> step_contacts_;
+  double last_step_px_ = 0.0;  // the longest node move of the last substep
+  double snap_px_ = 0.0;  // half the mesh's mean rest edge length
 
   int frame_ = 0;
   SimulationStatus status_ = SimulationStatus::kRunning;
