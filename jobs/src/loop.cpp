@@ -379,6 +379,8 @@ class Loop {
   }
   void Prepare();
   Fit Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm);
+  // The job's best values and training score; empty values and +inf
+  // where no candidate simulated every training recording.
   std::pair<ParameterValues, double> RunJob(const std::string& name,
                                             const std::vector<std::string>& effects,
                                             const std::vector<ParameterSetting>& settings,
@@ -540,13 +542,13 @@ std::pair<ParameterValues, double> Loop::RunJob(const std::string& name,
   const int64_t job = store_->CreateJob(spec.name, ToJson(spec));
   RunControl control;
   const RunSummary run = RunCalibration(spec, *store_, job, evaluator, control);
-  if (!run.best) {
-    throw std::runtime_error(fmt::format(
-        "loop: calibrating {} found no candidate that simulates every training recording ({})",
-        StageName(effects), run.stop_reason));
-  }
   fit->evaluations += static_cast<int>(run.evaluations);
   fit->jobs.push_back(job);
+  if (!run.best) {
+    Log(fmt::format("loop: job {} found no candidate that simulates every training recording ({})",
+                    name, run.stop_reason));
+    return {ParameterValues{}, std::numeric_limits<double>::infinity()};
+  }
   return {run.best->parameters, run.best->score};
 }
 
@@ -584,6 +586,11 @@ Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fi
         fit.values = values;
       }
     }
+    if (fit.values.empty()) {
+      throw std::runtime_error(fmt::format(
+          "loop: calibrating {} found no candidate that simulates every training recording",
+          StageName(effects)));
+    }
   } else {
     // Warm start in two phases. (1) The new effect's parameters alone, over
     // their whole box, the previous model's held at their best: a small
@@ -616,7 +623,11 @@ Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fi
     for (double& u : x1) u = std::clamp(u, 0.0, 1.0);
     const auto [values1, score1] = RunJob(JobName(index, effects) + "-effect", effects, effect_only,
                                           &x1, 0.3, budget1, seed, &fit);
-    std::vector<double> x2 = SearchSpace(settings).ToUnit(values1);
+    // (A phase that found no candidate simulating every training recording
+    // scores +inf; where none did, the fit is the warm start, which the
+    // criterion rejects if it does not simulate either.)
+    std::vector<double> x2 =
+        SearchSpace(settings).ToUnit(std::isfinite(score1) ? values1 : start_values);
     for (double& u : x2) u = std::clamp(u, 0.0, 1.0);
     constexpr double kJointSigma = 0.25;
     const auto [values2, score2] = RunJob(JobName(index, effects), effects, settings, &x2,
@@ -629,7 +640,7 @@ Fit Loop::Calibrate(int index, const std::vector<std::string>& effects, const Fi
       fit.values = values1;
       best = score1;
     }
-    if (score0 < best) fit.values = start_values;
+    if (score0 < best || !std::isfinite(best)) fit.values = start_values;
   }
   Measure(&fit);
   fit.seconds = Since(start);
