@@ -10,13 +10,18 @@ function(calib_add_library name)
   target_compile_options(calib_${name} PRIVATE -Wall -Wextra -Wpedantic)
 endfunction()
 
-# calib_add_test(NAME SOURCES ... DEPENDS ...): one GoogleTest executable,
-# registered with ctest. Tests find ../shared through CALIB_SHARED_DIR.
+# calib_add_test(NAME SOURCES ... DEPENDS ... [TIMEOUT SECONDS]): one
+# GoogleTest executable, registered with ctest. Tests find ../shared through
+# CALIB_SHARED_DIR. TIMEOUT overrides ctest's --timeout for each of its tests
+# (whole calibrations).
 function(calib_add_test name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPENDS" ${ARGN})
+  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;DEPENDS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPENDS} calib_test_support GTest::gtest_main)
   target_compile_options(${name} PRIVATE -Wall -Wextra)
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
-    PROPERTIES ENVIRONMENT "CALIB_SHARED_DIR=${CALIB_SHARED_DIR}")
+  set(properties ENVIRONMENT "CALIB_SHARED_DIR=${CALIB_SHARED_DIR}")
+  if(ARG_TIMEOUT)
+    list(APPEND properties TIMEOUT ${ARG_TIMEOUT})
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${properties})
 endfunction()
