@@ -211,6 +211,19 @@ bool CentreWasInFront(const SubstepStart& start, int a, int b, size_t d) {
 
 }  // namespace
 
+bool NearestInteriorEdgePoint(const Vec2& a, const Vec2& b, const Vec2& centre, EdgePoint* edge_point) {
+  const Vec2 e = b - a;
+  const double len_sq = e.squaredNorm();
+  if (!(len_sq > 0.0)) return false;
+  const double t = (centre - a).dot(e) / len_sq;
+  if (!(t > 0.0 && t < 1.0)) return false;
+  // The interior lies to the left of a -> b (positive triangles).
+  edge_point->t = t;
+  edge_point->inward = Vec2(-e.y(), e.x()) / std::sqrt(len_sq);
+  edge_point->s = edge_point->inward.dot(a - centre);
+  return true;
+}
+
 int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
                               std::span<const double> inverse_weight, std::span<Vec2> x,
                               const SubstepStart& start) {
@@ -234,15 +247,12 @@ int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
       const size_t m = loop.size();
       for (size_t k = 0; k < m; ++k) {
         const int a = loop[k], b = loop[(k + 1) % m];
-        const Vec2 e = x[b] - x[a];
-        const double len_sq = e.squaredNorm();
-        if (!(len_sq > 0.0)) continue;
-        const double t = (disc.centre - x[a]).dot(e) / len_sq;
-        if (!(t > 0.0 && t < 1.0)) continue;  // nearest an end node: ProjectOutOfDiscs' case
-        // The interior lies to the left of a -> b (positive triangles);
-        // s > 0: the centre is in front of the edge, outside.
-        const Vec2 n = Vec2(-e.y(), e.x()) / std::sqrt(len_sq);
-        const double s = n.dot(x[a] - disc.centre);
+        // Nearest an end node: ProjectOutOfDiscs' case. s > 0: the centre
+        // is in front of the edge, outside.
+        EdgePoint nearest;
+        if (!NearestInteriorEdgePoint(x[a], x[b], disc.centre, &nearest)) continue;
+        const double t = nearest.t, s = nearest.s;
+        const Vec2& n = nearest.inward;
         if (!(s < inner)) continue;
         if (!(s > (centre_inside ? -r : 0.0)) &&
             !(centre_inside && start_known && CentreWasInFront(start, a, b, d))) {

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 
 namespace calib {
@@ -109,10 +110,11 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
   }
   if (options.integrator == IntegratorKind::kImplicitFirstOrder) {
     implicit_step_ = std::make_unique<ImplicitFirstOrderStep>(model_, inverse_weight_);
-    double edge_length = 0.0;
-    for (const auto& [i, j] : mesh.edges) edge_length += (mesh.rest_positions[j] - mesh.rest_positions[i]).norm();
-    if (!mesh.edges.empty()) edge_length /= static_cast<double>(mesh.edges.size());
-    snap_px_ = 0.5 * edge_length;
+    const std::vector<double>& lengths = mesh.rest_length_px;
+    if (!lengths.empty()) {
+      snap_px_ = 0.5 * std::accumulate(lengths.begin(), lengths.end(), 0.0) /
+                 static_cast<double>(lengths.size());
+    }
     size_t boundary_edges = 0;
     for (const std::vector<int>& loop : mesh.boundary_loops) boundary_edges += loop.size();
     step_contacts_.reserve(static_cast<size_t>(scene.num_obstacles) *
@@ -290,12 +292,12 @@ bool Simulator::Substep(int substep) {
   if (!ApplyConstraints()) return false;
 
   const double inv_h = 1.0 / h;
-  for (int i = 0; i < n; ++i) v_[i] = (x_[i] - x_prev_[i]) * inv_h;
-  if (implicit_) {
-    double longest_sq = 0.0;
-    for (int i = 0; i < n; ++i) longest_sq = std::max(longest_sq, (x_[i] - x_prev_[i]).squaredNorm());
-    last_step_px_ = std::sqrt(longest_sq);
+  double fastest_sq = 0.0;
+  for (int i = 0; i < n; ++i) {
+    v_[i] = (x_[i] - x_prev_[i]) * inv_h;
+    fastest_sq = std::max(fastest_sq, v_[i].squaredNorm());
   }
+  last_step_px_ = std::sqrt(fastest_sq) * h;
   for (EffectTerm* effect : after_substep_effects_) effect->AfterSubstep(x_, h);
   return true;
 }
@@ -349,21 +351,16 @@ void Simulator::GatherStepContacts() {
     for (const std::vector<int>& loop : mesh_.boundary_loops) {
       for (size_t e = 0, m = loop.size(); e < m; ++e) {
         const int a = loop[e], b = loop[(e + 1) % m];
-        const Vec2 edge = x_[b] - x_[a];
-        const double len_sq = edge.squaredNorm();
-        if (!(len_sq > 0.0)) continue;
-        const double t = (c - x_[a]).dot(edge) / len_sq;
-        if (!(t > 0.0 && t < 1.0)) continue;  // nearest an end node: that node's contact
-        // The interior lies to the left of a -> b; s > 0: the centre is in
+        // Nearest an end node: that node's contact. s > 0: the centre is in
         // front of the edge.
-        const Vec2 inward = Vec2(-edge.y(), edge.x()) / std::sqrt(len_sq);
-        const double s = inward.dot(x_[a] - c);
-        if (!(s > 0.0 && s < reach)) continue;
+        EdgePoint nearest;
+        if (!NearestInteriorEdgePoint(x_[a], x_[b], c, &nearest)) continue;
+        if (!(nearest.s > 0.0 && nearest.s < reach)) continue;
         StepContact contact;
         contact.nodes = {a, b};
-        contact.weights = {1.0 - t, t};
-        contact.normal = inward;
-        contact.gap = r - s;
+        contact.weights = {1.0 - nearest.t, nearest.t};
+        contact.normal = nearest.inward;
+        contact.gap = r - nearest.s;
         contact.obstacle_step = motion;
         step_contacts_.push_back(contact);
       }

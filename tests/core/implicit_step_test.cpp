@@ -122,7 +122,9 @@ TEST(ImplicitStep, AgreesWithTheExplicitStepToFirstOrderInTheStep) {
       explicit_step += explicit_move.squaredNorm();
     }
     const double ratio = std::sqrt(difference / explicit_step);
-    if (previous_ratio > 0.0) EXPECT_NEAR(ratio / previous_ratio, 0.1, 0.02) << "h = " << h;
+    if (previous_ratio > 0.0) {
+      EXPECT_NEAR(ratio / previous_ratio, 0.1, 0.02) << "h = " << h;
+    }
     previous_ratio = ratio;
   }
   EXPECT_LT(previous_ratio, 1e-3);

@@ -36,6 +36,19 @@ struct SubstepStart {
 int ProjectOutOfDiscs(std::span<const Disc> discs, std::span<const double> inverse_weight,
                       std::span<Vec2> x, const SubstepStart& start = {});
 
+/// Where boundary edge a -> b (interior to its left) is nearest a point
+/// `centre`: at (1 - t) a + t b; `inward` is the edge's unit normal into
+/// the interior and `s` = inward . (a - centre), positive when the centre
+/// lies in front of the edge (outside). False, and *edge_point unset, for a
+/// degenerate edge or when the nearest point is an end node (t outside
+/// (0, 1)): that node is nearest.
+struct EdgePoint {
+  double t = 0.0;
+  Vec2 inward = Vec2::Zero();
+  double s = 0.0;
+};
+bool NearestInteriorEdgePoint(const Vec2& a, const Vec2& b, const Vec2& centre, EdgePoint* edge_point);
+
 /// Edges inside a disc by less than this are left alone by
 /// ProjectBoundaryOutOfDiscs: invisible to the rasteriser.
 inline constexpr double kEdgeContactTolerancePx = 0.01;
