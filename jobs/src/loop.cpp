@@ -706,10 +706,11 @@ std::vector<EvaluationResult> Loop::ScoreOnHeldOut(const std::vector<ParameterVa
 }
 
 // A model's held-out error is a number only as far as it does not hang on
-// digits the calibration cannot resolve: where contacts switch between
-// sticking and sliding (a stiff mesh with contact friction), moving every
-// value by 0.1 % moves the held-out XOR sum of push_viscoelastic_offset by
-// up to 12 %; with the explicit step by 0.01 %. The largest move over
+// digits the calibration cannot resolve: while the implicit step left its
+// contacts to the projections (contacts switching between sticking and
+// sliding), moving every value by 0.1 % moved the held-out XOR sum of
+// push_viscoelastic_offset by up to 12 %; with the contacts in the step it
+// is 0.01-0.3 % on the bundled pushes. The largest move over
 // kSensitivityNudges nudges (each value times 1 +- 0.1 %, signs drawn from
 // the loop's seed) is a floor of the held-out margin; a nudge that fails to
 // simulate makes the whole held-out sum the floor.
