@@ -137,6 +137,53 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   diagonal_.resize(m);
   for (int k = 0; k < m; ++k) diagonal_[k] = position(k, k);
 
+  // For the extra forces' stiffness: each column's rows over the whole
+  // (symmetric) pattern with the position of their lower-triangle entry,
+  // and colour groups of columns that share no row (greedy), probed
+  // together.
+  std::vector<int> count(m + 1, 0);
+  for (int col = 0; col < m; ++col) count[renumbered(col) + 1] += static_cast<int>(
+      pattern.outerIndexPtr()[col + 1] - pattern.outerIndexPtr()[col]);
+  for (int k = 0; k < m; ++k) count[k + 1] += count[k];
+  row_begin_ = count;
+  rows_.resize(count[m]);
+  row_position_.resize(count[m]);
+  for (int col = 0; col < m; ++col) {
+    const int c = renumbered(col);
+    int slot = row_begin_[c];
+    for (SparseMatrix::InnerIterator it(pattern, col); it; ++it, ++slot) {
+      const int r = renumbered(static_cast<int>(it.row()));
+      rows_[slot] = r;
+      row_position_[slot] = position(std::max(r, c), std::min(r, c));
+    }
+  }
+  std::vector<int> colour_of(m, -1);
+  std::vector<std::vector<uint8_t>> row_taken;  // per colour
+  for (int k = 0; k < m; ++k) {
+    for (int colour = 0; colour_of[k] < 0; ++colour) {
+      if (colour == static_cast<int>(row_taken.size())) row_taken.emplace_back(m, 0);
+      std::vector<uint8_t>& taken = row_taken[colour];
+      bool free = true;
+      for (int i = row_begin_[k]; i < row_begin_[k + 1] && free; ++i) free = taken[rows_[i]] == 0;
+      if (!free) continue;
+      for (int i = row_begin_[k]; i < row_begin_[k + 1]; ++i) taken[rows_[i]] = 1;
+      colour_of[k] = colour;
+    }
+  }
+  colour_begin_.assign(row_taken.size() + 1, 0);
+  for (int k = 0; k < m; ++k) ++colour_begin_[colour_of[k] + 1];
+  for (size_t g = 0; g + 1 < colour_begin_.size(); ++g) colour_begin_[g + 1] += colour_begin_[g];
+  coloured_unknowns_.resize(m);
+  {
+    std::vector<int> cursor(colour_begin_.begin(), colour_begin_.end() - 1);
+    for (int k = 0; k < m; ++k) coloured_unknowns_[cursor[colour_of[k]]++] = k;
+  }
+  extra_.assign(A_.nonZeros(), 0.0);
+  rest_ = model.mesh().rest_positions;
+  probe_x_ = rest_;
+  probe_plus_.assign(rest_.size(), Vec2::Zero());
+  probe_minus_.assign(rest_.size(), Vec2::Zero());
+
   unknown_of_coordinate_.assign(2 * static_cast<size_t>(n), -1);
   for (int k = 0; k < m; ++k) unknown_of_coordinate_[coordinate_of_unknown_[k]] = k;
 
@@ -154,13 +201,48 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   tangent_response_.setZero(m, kMaxActiveContacts);
 }
 
+void ImplicitFirstOrderStep::ProbeExtraStiffness(const ExtraForces& extra) {
+  std::fill(extra_.begin(), extra_.end(), 0.0);
+  const auto evaluate = [&](double offset, size_t g, std::vector<Vec2>& f) {
+    std::copy(rest_.begin(), rest_.end(), probe_x_.begin());
+    for (int i = colour_begin_[g]; i < colour_begin_[g + 1]; ++i) {
+      const int c = coordinate_of_unknown_[coloured_unknowns_[i]];
+      probe_x_[c / 2][c % 2] += offset;
+    }
+    std::fill(f.begin(), f.end(), Vec2::Zero());
+    extra(probe_x_, f);
+  };
+  for (size_t g = 0; g + 1 < colour_begin_.size(); ++g) {
+    evaluate(kStiffnessProbePx, g, probe_plus_);
+    evaluate(-kStiffnessProbePx, g, probe_minus_);
+    // The group's columns share no row: each row's change belongs to one
+    // column. Symmetrised as the unit matrices are: half of each
+    // off-diagonal entry from either side.
+    for (int i = colour_begin_[g]; i < colour_begin_[g + 1]; ++i) {
+      const int k = coloured_unknowns_[i];
+      for (int j = row_begin_[k]; j < row_begin_[k + 1]; ++j) {
+        const int r = rows_[j];
+        const int c = coordinate_of_unknown_[r];
+        const double value =
+            (probe_minus_[c / 2][c % 2] - probe_plus_[c / 2][c % 2]) / (2.0 * kStiffnessProbePx);
+        extra_[row_position_[j]] += r == k ? value : 0.5 * value;
+      }
+    }
+  }
+}
+
 bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
-                                       std::string* error) {
+                                       const ExtraForces* extra, std::string* error) {
   double* a = A_.valuePtr();
   const double damping_over_h = params.k_damping / h;
   for (size_t p = 0; p < distance_.size(); ++p) {
     a[p] = params.k_distance * distance_[p] + params.k_area * area_[p] +
            params.k_angle * angle_[p] + damping_over_h * damping_[p];
+  }
+  has_extra_ = extra != nullptr && *extra;
+  if (has_extra_) {
+    ProbeExtraStiffness(*extra);
+    for (size_t p = 0; p < extra_.size(); ++p) a[p] += extra_[p];
   }
   const double mass_over_h = params.mass / h;
   h_over_m_ = h / params.mass;
@@ -174,8 +256,9 @@ bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
     if (error != nullptr) {
       *error = fmt::format(
           "implicit first-order step: m / h + K0 + k_d / h D0 is not positive definite "
-          "(k_distance = {}, k_area = {}, k_angle = {}, k_damping = {}, mass = {}, h = {})",
-          params.k_distance, params.k_area, params.k_angle, params.k_damping, params.mass, h);
+          "(k_distance = {}, k_area = {}, k_angle = {}, k_damping = {}, mass = {}, h = {}{})",
+          params.k_distance, params.k_area, params.k_angle, params.k_damping, params.mass, h,
+          has_extra_ ? "; with the effects' stiffness" : "");
     }
     return false;
   }
@@ -445,23 +528,31 @@ bool ImplicitFirstOrderStep::SolveActive(std::span<const StepContact> contacts, 
   return true;
 }
 
-Eigen::SparseMatrix<double> ImplicitFirstOrderStep::Stiffness(const ModelParameters& params) const {
-  const int m = num_unknowns();
+template <class Value>
+Eigen::SparseMatrix<double> ImplicitFirstOrderStep::OverCoordinates(Value value) const {
   std::vector<Triplet> entries;
-  for (int col = 0; col < m; ++col) {
+  for (int col = 0; col < num_unknowns(); ++col) {
     for (int p = A_.outerIndexPtr()[col]; p < A_.outerIndexPtr()[col + 1]; ++p) {
-      const int row = A_.innerIndexPtr()[p];
-      const double value = params.k_distance * distance_[p] + params.k_area * area_[p] +
-                           params.k_angle * angle_[p];
-      if (value == 0.0) continue;
-      const int r = coordinate_of_unknown_[row], c = coordinate_of_unknown_[col];
-      entries.emplace_back(r, c, value);
-      if (r != c) entries.emplace_back(c, r, value);
+      const double v = value(p);
+      if (v == 0.0) continue;
+      const int r = coordinate_of_unknown_[A_.innerIndexPtr()[p]], c = coordinate_of_unknown_[col];
+      entries.emplace_back(r, c, v);
+      if (r != c) entries.emplace_back(c, r, v);
     }
   }
-  SparseMatrix stiffness(num_coordinates_, num_coordinates_);
-  stiffness.setFromTriplets(entries.begin(), entries.end());
-  return stiffness;
+  SparseMatrix matrix(num_coordinates_, num_coordinates_);
+  matrix.setFromTriplets(entries.begin(), entries.end());
+  return matrix;
+}
+
+Eigen::SparseMatrix<double> ImplicitFirstOrderStep::Stiffness(const ModelParameters& params) const {
+  return OverCoordinates([&](int p) {
+    return params.k_distance * distance_[p] + params.k_area * area_[p] + params.k_angle * angle_[p];
+  });
+}
+
+Eigen::SparseMatrix<double> ImplicitFirstOrderStep::ExtraStiffness() const {
+  return OverCoordinates([&](int p) { return has_extra_ ? extra_[p] : 0.0; });
 }
 
 }  // namespace calib

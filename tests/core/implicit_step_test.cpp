@@ -5,6 +5,7 @@
 // and stability where the explicit step fails.
 
 #include "calib/core/constraints.h"
+#include "calib/core/effects.h"
 #include "calib/core/implicit_step.h"
 #include "calib/core/simulator.h"
 
@@ -72,6 +73,98 @@ TEST(ImplicitStep, StiffnessIsTheForcesDerivativeAtRest) {
   const Eigen::VectorXd expected = (Flat(f_minus) - Flat(f_plus)) / (2.0 * e);
   const Eigen::VectorXd got = k * Flat(u);
   EXPECT_LT((got - expected).norm(), 1e-6 * expected.norm()) << "|K u| = " << got.norm();
+}
+
+// A stiffness field over the rest shape (uneven_stiffness, which declares
+// rest_stiffness), its gradient towards +x at 30 deg.
+std::unique_ptr<EffectTerm> UnevenField(const Mesh& mesh, const ModelParameters& base,
+                                        double gradient) {
+  std::unique_ptr<EffectTerm> effect = MakeEffect("uneven_stiffness");
+  EXPECT_TRUE(effect->hooks().rest_stiffness);
+  effect->Bind(mesh);
+  effect->Configure({{"uneven_gradient", gradient}, {"uneven_angle_deg", 30.0}}, base);
+  return effect;
+}
+
+TEST(ImplicitStep, AnEffectsStiffnessIsItsForcesDerivativeAtRest) {
+  const Mesh mesh = MakeGridMesh(6, 4, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  const std::vector<double> movable(mesh.NumNodes(), 1.0);
+  ImplicitFirstOrderStep step(model, movable);
+  const ModelParameters p = Mixed();
+  const std::unique_ptr<EffectTerm> field = UnevenField(mesh, p, 0.8);
+  const std::vector<Vec2> zero(mesh.NumNodes(), Vec2::Zero());
+  const ImplicitFirstOrderStep::ExtraForces forces = [&](std::span<const Vec2> x,
+                                                        std::span<Vec2> f) {
+    field->AddForces(x, zero, f, nullptr);
+  };
+  std::string error;
+  ASSERT_TRUE(step.Configure(p, 1.0 / 300.0, &forces, &error)) << error;
+  const Eigen::SparseMatrix<double> k = step.ExtraStiffness();
+  ASSERT_GT(k.norm(), 0.0);
+  EXPECT_LT((Eigen::MatrixXd(k) - Eigen::MatrixXd(k).transpose()).norm(), 1e-9 * k.norm());
+  // K u = -(F(X + e u) - F(X - e u)) / 2e of the effect's forces, for
+  // random directions u: every column, probed in groups, is its own.
+  for (uint64_t seed = 1; seed <= 3; ++seed) {
+    const std::vector<Vec2> u = RandomField(mesh.NumNodes(), 1.0, seed);
+    const double e = 1e-4;
+    std::vector<Vec2> plus(mesh.rest_positions), minus(mesh.rest_positions);
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      plus[i] += e * u[i];
+      minus[i] -= e * u[i];
+    }
+    std::vector<Vec2> f_plus(mesh.NumNodes(), Vec2::Zero()), f_minus(mesh.NumNodes(), Vec2::Zero());
+    forces(plus, f_plus);
+    forces(minus, f_minus);
+    const Eigen::VectorXd expected = (Flat(f_minus) - Flat(f_plus)) / (2.0 * e);
+    EXPECT_LT((k * Flat(u) - expected).norm(), 1e-6 * expected.norm()) << "seed " << seed;
+  }
+  // Configured without it, the step holds no extra stiffness.
+  ASSERT_TRUE(step.Configure(p, 1.0 / 300.0, &error)) << error;
+  EXPECT_EQ(step.ExtraStiffness().nonZeros(), 0);
+}
+
+TEST(ImplicitStep, AStiffFieldInTheMatrixDoesNotOvershoot) {
+  // A stiff mesh (K >> m / h), deformed, relaxed by one step with the
+  // field's forces in F. With the field's stiffness in the matrix the step
+  // lands near the rest shape; with it left explicit the stiff side
+  // overshoots by the field's share (up to 0.9 of its deformation).
+  const Mesh mesh = MakeGridMesh(6, 4, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  const std::vector<double> movable(mesh.NumNodes(), 1.0);
+  ModelParameters p = Mixed();
+  p.k_distance *= 1e5;
+  p.k_area *= 1e5;
+  p.k_angle *= 1e5;
+  p.k_damping = 0.0;
+  const std::unique_ptr<EffectTerm> field = UnevenField(mesh, p, 0.9);
+  const std::vector<Vec2> zero(mesh.NumNodes(), Vec2::Zero());
+  const ImplicitFirstOrderStep::ExtraForces forces = [&](std::span<const Vec2> x,
+                                                        std::span<Vec2> f) {
+    field->AddForces(x, zero, f, nullptr);
+  };
+  const std::vector<Vec2> x0 = calib::testing::Jittered(mesh.rest_positions, 0.05, 5);
+  const auto residual_force = [&](const std::vector<Vec2>& x) {
+    std::vector<Vec2> f(mesh.NumNodes());
+    model.ComputeForces(p, x, zero, f);
+    forces(x, f);
+    return Flat(f).norm();
+  };
+  const auto relaxed = [&](const ImplicitFirstOrderStep::ExtraForces* extra) {
+    ImplicitFirstOrderStep step(model, movable);
+    std::string error;
+    EXPECT_TRUE(step.Configure(p, 1.0 / 300.0, extra, &error)) << error;
+    std::vector<Vec2> f(mesh.NumNodes());
+    model.ComputeForces(p, x0, zero, f);
+    forces(x0, f);
+    std::vector<Vec2> x = x0;
+    step.Step(f, x);
+    return residual_force(x) / residual_force(x0);
+  };
+  const double with_field = relaxed(&forces);
+  const double explicit_field = relaxed(nullptr);
+  EXPECT_LT(with_field, 0.05);
+  EXPECT_GT(explicit_field, 0.3) << "with the field in the matrix: " << with_field;
 }
 
 TEST(ImplicitStep, RigidMotionsAreFreeAndEveryOtherMotionIsResisted) {

@@ -13,7 +13,9 @@
 // The base model's vectorised kernels stay as they are: the effect adds
 // (factor - 1) times each base term, computed by the reference kernels of
 // energy_terms.h, so the sum is the base term with the element's stiffness
-// (damping is not scaled).
+// (damping is not scaled). The added stiffness is elastic about the rest
+// shape (rest_stiffness): the implicit step holds it in its matrix, so a
+// stiff side is as stable as the base model.
 
 #include <numbers>
 
@@ -40,7 +42,7 @@ class UnevenStiffnessEffect final : public EffectTerm {
         true};
     return kInfo;
   }
-  EffectHooks hooks() const override { return {.forces = true}; }
+  EffectHooks hooks() const override { return {.forces = true, .rest_stiffness = true}; }
 
   void Bind(const Mesh& mesh) override {
     mesh_ = &mesh;

@@ -54,6 +54,13 @@ struct EffectHooks {
   bool dynamics = false;
   bool step_limit = false;
   bool push = false;
+  /// The forces are springs about the rest shape, each node's depending only
+  /// on the nodes that share a mesh element with it (as the base terms').
+  /// The implicit first-order step then takes their stiffness at the rest
+  /// shape into its matrix, as it does the base springs': a stiffness the
+  /// effect adds is then as stable as the base model's, where left explicit
+  /// it would make the step overshoot by the added share every substep.
+  bool rest_stiffness = false;
 };
 
 /// One substep's integration, as LimitStep sees it.

@@ -13,8 +13,11 @@
 //
 // treats the springs with their stiffness K0 and the edge damping with its
 // matrix D0, both at the rest shape, and everything else (the push, the
-// effects' forces) explicitly. Its fixed points are the explicit step's
-// (dx = 0 where the forces balance); for small h it agrees with it to first
+// effects' forces) explicitly; effects that add springs about the rest
+// shape (EffectHooks::rest_stiffness: a stiffness field) add their
+// stiffness at the rest shape to K0, their forces staying in F. Its fixed
+// points are the explicit step's (dx = 0 where the forces balance); for
+// small h it agrees with it to first
 // order; for large stiffness it is a modified Newton iteration towards the
 // equilibrium (K0 for K(x)), which converges while the mesh's elements turn
 // and stretch moderately from their rest shape, as a pushed sponge does.
@@ -65,6 +68,7 @@
 #include <Eigen/SparseCore>
 
 #include <array>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -90,11 +94,26 @@ class ImplicitFirstOrderStep {
   /// the nodes with `movable` != 0. `movable` must outlive this.
   ImplicitFirstOrderStep(const Model& model, std::span<const double> movable);
 
+  /// Forces added to the model's (ADDS them to f at the positions x, #N
+  /// each, zero velocities) whose stiffness the step also takes implicitly.
+  using ExtraForces = std::function<void(std::span<const Vec2> x, std::span<Vec2> f)>;
+
   /// Factorises m / h I + K0 + (k_d / h) D0 for `params` and step `h`.
   /// Returns false with *error set when the matrix is not positive definite
   /// (it is for every valid parameter set: K0 and D0 are positive
   /// semi-definite at the rest shape).
-  bool Configure(const ModelParameters& params, double h, std::string* error);
+  bool Configure(const ModelParameters& params, double h, std::string* error) {
+    return Configure(params, h, nullptr, error);
+  }
+
+  /// As above, with K0 also holding the stiffness of `extra` (when not
+  /// null) at the rest shape: each node's forces must depend only on the
+  /// nodes sharing a model element with it (EffectHooks::rest_stiffness).
+  /// Its columns are probed by central differences, the unknowns whose
+  /// neighbourhoods do not overlap together (a few dozen evaluations of
+  /// `extra` a candidate). Allocates nothing.
+  bool Configure(const ModelParameters& params, double h, const ExtraForces* extra,
+                 std::string* error);
 
   /// x += dx for the forces `f` (#N, the springs without damping plus every
   /// explicit force) at the positions `x`; clamped nodes stay. After a
@@ -115,6 +134,10 @@ class ImplicitFirstOrderStep {
   /// 2i+1; zero rows and columns for clamped nodes), for tests.
   Eigen::SparseMatrix<double> Stiffness(const ModelParameters& params) const;
 
+  /// The stiffness of the last Configure's `extra` forces, as Stiffness
+  /// (zero without them), for tests.
+  Eigen::SparseMatrix<double> ExtraStiffness() const;
+
   int num_unknowns() const { return static_cast<int>(coordinate_of_unknown_.size()); }
 
  private:
@@ -125,6 +148,20 @@ class ImplicitFirstOrderStep {
   std::vector<int> unknown_of_coordinate_;  // its inverse; -1 for clamped nodes
   // The unit matrices' values on A's pattern (A_ below), in its storage order.
   std::vector<double> distance_, area_, angle_, damping_;
+  // The extra forces' stiffness on A's pattern, and how it is probed: the
+  // unknowns in colour groups whose columns share no row, each column's
+  // rows (rows_ from row_begin_[k]) with the positions of their entries in
+  // A's values (the lower triangle's).
+  std::vector<double> extra_;
+  std::vector<int> colour_begin_, coloured_unknowns_;
+  std::vector<int> row_begin_, rows_, row_position_;
+  std::vector<Vec2> rest_, probe_x_, probe_plus_, probe_minus_;
+  bool has_extra_ = false;
+  void ProbeExtraStiffness(const ExtraForces& extra);
+  // The symmetric matrix over all 2N coordinates whose lower triangle on
+  // A's pattern has the values value(position).
+  template <class Value>
+  Eigen::SparseMatrix<double> OverCoordinates(Value value) const;
   std::vector<int> diagonal_;  // index of each unknown's diagonal entry in A_'s values
   SparseMatrix A_;             // lower triangle of the step's matrix, permuted
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> factor_;
