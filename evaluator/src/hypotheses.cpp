@@ -342,17 +342,21 @@ Hypothesis TraceUnevenStiffness(const ResidualAnalysis& a, double significance,
                   r.signed_dipole.x(), r.signed_dipole.y()));
   const double elastic = 1.0 - persistent_support;
   // A shifted mesh is lopsided too (missed on one side, extra on the
-  // other): discount by how much of the residual a centroid offset of this
-  // size accounts for (a shift by d leaves a band ~d thick).
-  const double shift_share = a.residual_thickness_px > 0.0
-                                 ? a.motion.mean_abs_offset_px / a.residual_thickness_px
-                                 : 0.0;
-  const double not_shift = 1.0 - Ramp(shift_share, 0.4, 1.0);
+  // other): discount by the share of the residual that shifting the mesh
+  // onto the object's centroid removes, measured (loaded frames where there
+  // are some). Comparing the offset's size with the residual's thickness
+  // instead would discount the uneven field's own signature: a soft side
+  // that dents deeper moves the object's centroid as well, by about as much
+  // as the residual is thick, while the shifted mesh misses as much as ever.
+  double shift_share = LoadedPlacementShare(a);
+  if (!std::isfinite(shift_share) && a.mean_xor_px > 0.0) {
+    shift_share = std::clamp(1.0 - a.mean_aligned_xor_px / a.mean_xor_px, 0.0, 1.0);
+  }
+  const double not_shift = 1.0 - Ramp(shift_share, 0.2, 0.6);
   b.Add("not_a_shift", shift_share, not_shift,
-        fmt::format("a centroid offset of {:.1f} px accounts for ~{:.0f}% of the residual's "
-                    "thickness {:.2f} px",
-                    a.motion.mean_abs_offset_px, 100 * std::min(1.0, shift_share),
-                    a.residual_thickness_px));
+        fmt::format("{:.0f}% of the residual goes away when the mesh is shifted onto the "
+                    "object's centroid (offset {:.1f} px on average; residual {:.2f} px thick)",
+                    100 * shift_share, a.motion.mean_abs_offset_px, a.residual_thickness_px));
   b.h.confidence = significance * b.h.applicability * NoisyOr({{0.8, s_side}, {0.6, s_dipole}}) *
                    elastic * not_shift;
   b.h.summary = "the residual is lopsided over the rest shape and elastic: uneven stiffness";

@@ -1083,6 +1083,7 @@ LoopResult Loop::Run() {
     double best_gain = 0.0;
     std::vector<Fit> fits;
     std::vector<size_t> stage_index;
+    std::vector<uint8_t> passed;
     for (const std::string& effect : tries) {
       std::vector<std::string> effects = current.effects;
       effects.push_back(effect);
@@ -1118,6 +1119,7 @@ LoopResult Loop::Run() {
                       EquallyGoodLine(fit.equally_good)));
       stage_index.push_back(report_.stages.size());
       report_.stages.push_back(std::move(stage));
+      passed.push_back(v.pass ? 1 : 0);
       if (v.pass && (best < 0 || v.gain > best_gain)) {
         best = static_cast<int>(fits.size());
         best_gain = v.gain;
@@ -1134,7 +1136,7 @@ LoopResult Loop::Run() {
     kept.decision = StageDecision::kAccepted;
     kept.reason += "; the largest passing drop of this round: kept";
     for (size_t i = 0; i < fits.size(); ++i) {
-      if (static_cast<int>(i) != best && report_.stages[stage_index[i]].reason.find("exceeds the") != std::string::npos) {
+      if (static_cast<int>(i) != best && passed[i] != 0) {
         report_.stages[stage_index[i]].reason += fmt::format(
             "; passes, but {} drops more: not kept", fits[best].effects.back());
       }

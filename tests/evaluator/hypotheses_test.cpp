@@ -27,6 +27,7 @@ ResidualAnalysis Plain(const std::string& name = "rec") {
   a.rest_perimeter_px = 400.0;
   a.rest_radius_of_gyration_px = 30.0;
   a.mean_xor_px = 1000.0;
+  a.mean_aligned_xor_px = 1000.0;  // shifting the mesh removes none of it
   a.xor_sum = 90000;
   a.mean_iou = 0.9;
   a.residual_thickness_px = 2.5;
@@ -212,10 +213,29 @@ TEST(Hypotheses, LopsidedElasticResidualIsUnevenStiffness) {
   const auto hs = TraceHypotheses(a, {});
   EXPECT_EQ(hs.front().effect, "uneven_stiffness");
   EXPECT_DOUBLE_EQ(FindEvidence(hs.front(), "side_asymmetry").value, 0.9);
-  // The same lopsidedness explained by a centroid shift as thick as the
-  // residual is discounted to nothing.
+  // A centroid offset as large as the residual is thick does not discount
+  // it by itself: a soft side that dents deeper moves the centroid too.
   a.motion.mean_abs_offset_px = 2.5;
+  a.phases.push_back({});
+  a.phases.back().phase = LoadPhase::kLoading;
+  a.phases.back().num_frames = 30;
+  a.phases.back().mean_xor_px = 1500.0;
+  a.phases.back().mean_aligned_xor_px = 1470.0;  // shifting removes 2 %
+  const double lopsided = Find(TraceHypotheses(a, {}), "uneven_stiffness").confidence;
+  EXPECT_GT(lopsided, 0.5);
+  EXPECT_NEAR(FindEvidence(Find(TraceHypotheses(a, {}), "uneven_stiffness"), "not_a_shift").value,
+              0.02, 1e-12);
+  // The same lopsidedness that a shift of the mesh removes is a placement
+  // error, discounted to nothing.
+  a.phases.back().mean_aligned_xor_px = 300.0;
   EXPECT_LT(Find(TraceHypotheses(a, {}), "uneven_stiffness").confidence, 0.01);
+  // Without loaded frames the whole video's aligned residual decides.
+  ResidualAnalysis free = Plain();
+  free.regions = a.regions;
+  free.mean_aligned_xor_px = 200.0;  // of 1000
+  EXPECT_NEAR(FindEvidence(Find(TraceHypotheses(free, {}), "uneven_stiffness"), "not_a_shift").value,
+              0.8, 1e-12);
+  EXPECT_LT(Find(TraceHypotheses(free, {}), "uneven_stiffness").confidence, 0.01);
 }
 
 TEST(Hypotheses, EffectsAlreadyInTheModelAreLeftOut) {
