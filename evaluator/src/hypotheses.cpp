@@ -64,6 +64,17 @@ double LoadedPlacementShare(const ResidualAnalysis& a) {
   return x > 0.0 ? std::clamp(1.0 - al / x, 0.0, 1.0) : NAN;
 }
 
+// What the release shows, from the plasticity hypothesis's evidence: the
+// support that a residual persists after the load is gone, that it lies at
+// the contact, that it does not fade, and how far the release is watched
+// long enough to tell.
+struct Persistence {
+  double persistent = 0.0;
+  double at_contact = 0.0;
+  double no_recovery = 0.0;
+  double release_weight = 0.0;
+};
+
 Hypothesis TraceInertia(const ResidualAnalysis& a, double significance) {
   Builder b("inertia", a.recording);
   const OscillationSummary& o = a.oscillation;
@@ -146,7 +157,8 @@ Hypothesis TraceInertia(const ResidualAnalysis& a, double significance) {
   return b.h;
 }
 
-Hypothesis TraceTableFriction(const ResidualAnalysis& a, double significance) {
+Hypothesis TraceTableFriction(const ResidualAnalysis& a, double significance,
+                              const Persistence& persistence) {
   Builder b("table_friction", a.recording);
   const PushSummary& p = a.push;
   b.h.applicability = p.has_push ? 1.0 : 0.0;
@@ -181,11 +193,24 @@ Hypothesis TraceTableFriction(const ResidualAnalysis& a, double significance) {
       fmt::format("while loaded the mesh is {:.1f} px {} the object along the push",
                   std::abs(p.mean_offset_along_push_px),
                   p.mean_offset_along_push_px >= 0 ? "ahead of" : "behind"));
-  b.h.confidence = significance *
-                   NoisyOr({{0.9, s_place * s_grow}, {0.6, s_rot * s_place}, {0.6, s_ahead * s_grow}});
+  // After the release the table holds what the springs would undo: the
+  // residual persists without fading (a relaxing one is viscoelastic),
+  // spread over the body (a permanent set sits at the contact: plasticity).
+  const double held = persistence.persistent * persistence.no_recovery *
+                      (1.0 - persistence.at_contact);
+  const double s_hold = b.Add(
+      "held_after_release", held, held * persistence.release_weight,
+      fmt::format("after release the residual persists (support {:.2f}), does not fade (support "
+                  "{:.2f}) and lies {} the contact (support {:.2f} that it is at the contact)",
+                  persistence.persistent, persistence.no_recovery,
+                  persistence.at_contact > 0.5 ? "at" : "away from", persistence.at_contact));
+  b.h.confidence = significance * NoisyOr({{0.9, s_place * s_grow},
+                                           {0.6, s_rot * s_place},
+                                           {0.6, s_ahead * s_grow},
+                                           {0.7, s_hold}});
   b.h.summary =
-      "the object's placement, not its shape, drifts from the mesh as the push goes on: friction "
-      "with the table";
+      "the object's placement drifts from the mesh as the push goes on, or its deformation stays "
+      "after the release away from the contact: friction with the table";
   return b.h;
 }
 
@@ -225,10 +250,10 @@ Hypothesis TracePushRelaxation(const ResidualAnalysis& a, double significance) {
   return b.h;
 }
 
-Hypothesis TracePlasticity(const ResidualAnalysis& a, double significance, double* persistent_support) {
+Hypothesis TracePlasticity(const ResidualAnalysis& a, double significance, Persistence* persistence) {
   Builder b("plasticity", a.recording);
   const PersistenceSummary& ps = a.persistence;
-  *persistent_support = 0.0;
+  *persistence = {};
   // A few frames after release cannot tell a permanent set from a slow
   // recovery.
   b.h.applicability = ps.released ? Ramp(ps.released_frames, 5.0, 15.0) : 0.0;
@@ -247,7 +272,6 @@ Hypothesis TracePlasticity(const ResidualAnalysis& a, double significance, doubl
       fmt::format("after release the residual stays at {:.0f} px/frame (late third) = {:.0f}% of "
                   "the loaded residual {:.0f} px/frame above the pre-load floor {:.0f} px/frame",
                   ps.released_late_xor_px, 100 * ps.persistent_ratio, ps.loaded_xor_px, floor));
-  *persistent_support = s_persist;
   const double s_contact = b.Add(
       "contact_concentration", ps.contact_concentration,
       Ramp(ps.contact_concentration, 1.2, 3.0) * Ramp(ps.contact_fraction, 0.1, 0.4),
@@ -259,6 +283,7 @@ Hypothesis TracePlasticity(const ResidualAnalysis& a, double significance, doubl
   const double s_keep = b.Add(
       "does_not_recover", keep, Ramp(keep, 0.5, 0.9),
       fmt::format("late / early released residual = {:.2f} (1: no recovery)", keep));
+  *persistence = {s_persist, s_contact, s_keep, b.h.applicability};
   b.h.confidence = significance * b.h.applicability * s_persist * (0.6 + 0.4 * s_contact) *
                    (0.5 + 0.5 * s_keep);
   b.h.summary = "the residual stays after the load is gone, at the contact: a permanent dent";
@@ -422,11 +447,13 @@ const std::vector<std::string>& TracedEffects() {
 std::vector<Hypothesis> TraceHypotheses(const ResidualAnalysis& a,
                                         const std::vector<std::string>& already_in_model) {
   const double significance = Ramp(std::max(a.residual_thickness_px, a.p90_thickness_px), 0.8, 2.5);
-  double persistent = 0.0;
-  std::vector<Hypothesis> all = {TraceInertia(a, significance), TraceTableFriction(a, significance)};
-  all.push_back(TracePlasticity(a, significance, &persistent));
-  all.push_back(TraceUnevenStiffness(a, significance, persistent));
-  all.push_back(TraceStrainStiffening(a, significance, persistent));
+  Persistence persistence;
+  Hypothesis plasticity = TracePlasticity(a, significance, &persistence);
+  std::vector<Hypothesis> all = {TraceInertia(a, significance),
+                                 TraceTableFriction(a, significance, persistence),
+                                 std::move(plasticity)};
+  all.push_back(TraceUnevenStiffness(a, significance, persistence.persistent));
+  all.push_back(TraceStrainStiffening(a, significance, persistence.persistent));
   all.push_back(TraceViscoelastic(a, significance));
   all.push_back(TracePushRelaxation(a, significance));
   for (Hypothesis& h : all) {

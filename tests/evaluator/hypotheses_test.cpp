@@ -190,6 +190,39 @@ TEST(Hypotheses, PlacementDriftingWithThePushIsTableFriction) {
   EXPECT_NEAR(FindEvidence(hs.front(), "placement_share").value, 0.8, 1e-12);
 }
 
+TEST(Hypotheses, DeformationHeldAfterReleaseAwayFromTheContactIsTableFriction) {
+  // The residual persists after the release, as a permanent dent's does,
+  // but spread over the body: the table holds what the springs would undo.
+  ResidualAnalysis a = Pushed();
+  a.persistence.released_xor_px = 1300.0;
+  a.persistence.released_early_xor_px = 1000.0;
+  a.persistence.released_late_xor_px = 1480.0;
+  a.persistence.persistent_ratio = (1480.0 - 300.0) / (1500.0 - 300.0);
+  a.persistence.contact_fraction = 0.05;
+  a.persistence.contact_concentration = 1.0;
+  auto hs = TraceHypotheses(a, {});
+  EXPECT_EQ(hs.front().effect, "table_friction");
+  const Evidence& held = FindEvidence(hs.front(), "held_after_release");
+  EXPECT_GT(held.support, 0.9);
+  EXPECT_GT(hs.front().confidence, Find(hs, "plasticity").confidence);
+  // At the contact the same persistence is a permanent dent.
+  a.persistence.contact_fraction = 0.6;
+  a.persistence.contact_concentration = 4.0;
+  hs = TraceHypotheses(a, {});
+  EXPECT_EQ(hs.front().effect, "plasticity");
+  EXPECT_LT(FindEvidence(Find(hs, "table_friction"), "held_after_release").support, 0.05);
+  // A residual that fades after the release is a slow recovery, not held.
+  a.persistence.contact_fraction = 0.05;
+  a.persistence.released_early_xor_px = 2960.0;  // late / early = 0.5
+  EXPECT_EQ(FindEvidence(Find(TraceHypotheses(a, {}), "table_friction"), "held_after_release").support,
+            0.0);
+  // Without a release long enough to tell, no support.
+  a.persistence.released_early_xor_px = 1000.0;
+  a.persistence.released_frames = 3;
+  EXPECT_EQ(FindEvidence(Find(TraceHypotheses(a, {}), "table_friction"), "held_after_release").support,
+            0.0);
+}
+
 TEST(Hypotheses, ResidualGrowingFasterThanDeformationIsStrainStiffening) {
   ResidualAnalysis a = Pushed();
   a.strain.correlation = 0.95;
