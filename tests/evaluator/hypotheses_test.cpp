@@ -99,15 +99,23 @@ TEST(Hypotheses, NoResidualWorthExplainingGivesNoConfidence) {
   for (const Hypothesis& h : TraceHypotheses(a, {})) EXPECT_EQ(h.confidence, 0.0) << h.effect;
 }
 
+// After the release of Pushed() (loaded 1500 px/frame over a 300 px/frame
+// floor): the residual early and late in the release, and the share of it
+// near the contact with that zone's concentration.
+void ResidualAfterRelease(ResidualAnalysis& a, double early, double late, double contact_fraction,
+                          double contact_concentration) {
+  a.persistence.released_xor_px = 0.5 * (early + late);
+  a.persistence.released_early_xor_px = early;
+  a.persistence.released_late_xor_px = late;
+  a.persistence.persistent_ratio = (late - 300.0) / (1500.0 - 300.0);
+  a.persistence.contact_fraction = contact_fraction;
+  a.persistence.contact_concentration = contact_concentration;
+}
+
 TEST(Hypotheses, PermanentDentAtTheContactIsPlasticity) {
   ResidualAnalysis a = Pushed();
-  a.persistence.released_xor_px = 1300.0;
-  a.persistence.released_early_xor_px = 1320.0;
-  a.persistence.released_late_xor_px = 1280.0;
-  a.persistence.persistent_ratio = (1280.0 - 300.0) / (1500.0 - 300.0);
+  ResidualAfterRelease(a, 1320.0, 1280.0, 0.6, 4.0);
   a.persistence.fading_ratio = 0.03;
-  a.persistence.contact_fraction = 0.6;
-  a.persistence.contact_concentration = 4.0;
   const auto hs = TraceHypotheses(a, {});
   EXPECT_EQ(hs.front().effect, "plasticity");
   EXPECT_GT(hs.front().confidence, 0.5);
@@ -194,12 +202,7 @@ TEST(Hypotheses, DeformationHeldAfterReleaseAwayFromTheContactIsTableFriction) {
   // The residual persists after the release, as a permanent dent's does,
   // but spread over the body: the table holds what the springs would undo.
   ResidualAnalysis a = Pushed();
-  a.persistence.released_xor_px = 1300.0;
-  a.persistence.released_early_xor_px = 1000.0;
-  a.persistence.released_late_xor_px = 1480.0;
-  a.persistence.persistent_ratio = (1480.0 - 300.0) / (1500.0 - 300.0);
-  a.persistence.contact_fraction = 0.05;
-  a.persistence.contact_concentration = 1.0;
+  ResidualAfterRelease(a, 1000.0, 1480.0, 0.05, 1.0);
   auto hs = TraceHypotheses(a, {});
   EXPECT_EQ(hs.front().effect, "table_friction");
   const Evidence& held = FindEvidence(hs.front(), "held_after_release");
