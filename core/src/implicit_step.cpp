@@ -203,18 +203,22 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
 
 void ImplicitFirstOrderStep::ProbeExtraStiffness(const ExtraForces& extra) {
   std::fill(extra_.begin(), extra_.end(), 0.0);
-  const auto evaluate = [&](double offset, size_t g, std::vector<Vec2>& f) {
-    std::copy(rest_.begin(), rest_.end(), probe_x_.begin());
+  std::copy(rest_.begin(), rest_.end(), probe_x_.begin());
+  // The forces with the group's coordinates at rest + offset (0: back at
+  // rest).
+  const auto evaluate = [&](double offset, size_t g, std::vector<Vec2>* f) {
     for (int i = colour_begin_[g]; i < colour_begin_[g + 1]; ++i) {
       const int c = coordinate_of_unknown_[coloured_unknowns_[i]];
-      probe_x_[c / 2][c % 2] += offset;
+      probe_x_[c / 2][c % 2] = rest_[c / 2][c % 2] + offset;
     }
-    std::fill(f.begin(), f.end(), Vec2::Zero());
-    extra(probe_x_, f);
+    if (f == nullptr) return;
+    std::fill(f->begin(), f->end(), Vec2::Zero());
+    extra(probe_x_, *f);
   };
   for (size_t g = 0; g + 1 < colour_begin_.size(); ++g) {
-    evaluate(kStiffnessProbePx, g, probe_plus_);
-    evaluate(-kStiffnessProbePx, g, probe_minus_);
+    evaluate(kStiffnessProbePx, g, &probe_plus_);
+    evaluate(-kStiffnessProbePx, g, &probe_minus_);
+    evaluate(0.0, g, nullptr);
     // The group's columns share no row: each row's change belongs to one
     // column. Symmetrised as the unit matrices are: half of each
     // off-diagonal entry from either side.

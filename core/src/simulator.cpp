@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <stdexcept>
 
 namespace calib {
@@ -121,11 +120,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
   if (options.integrator == IntegratorKind::kImplicitFirstOrder) {
     implicit_step_ = std::make_unique<ImplicitFirstOrderStep>(model_, inverse_weight_);
     if (!rest_stiffness_effects_.empty()) zero_velocity_.assign(mesh.NumNodes(), Vec2::Zero());
-    const std::vector<double>& lengths = mesh.rest_length_px;
-    if (!lengths.empty()) {
-      snap_px_ = 0.5 * std::accumulate(lengths.begin(), lengths.end(), 0.0) /
-                 static_cast<double>(lengths.size());
-    }
+    snap_px_ = 0.5 * MeasureQuality(mesh).mean_edge_px;
     size_t boundary_edges = 0;
     for (const std::vector<int>& loop : mesh.boundary_loops) boundary_edges += loop.size();
     step_contacts_.reserve(static_cast<size_t>(scene.num_obstacles) *
@@ -330,13 +325,14 @@ bool Simulator::CheckImplicitStep(int substep) {
   // then releases it in a few substeps (tens of pixels each) and ends with
   // triangles turned over. Such a candidate follows no video; it fails
   // here, with the node and the move, rather than by chance a few frames on.
+  const double snap_sq = snap_px_ * snap_px_;
   for (size_t i = 0; i < x_.size(); ++i) {
-    const double move = (x_[i] - x_prev_[i]).norm();
-    if (move >= snap_px_) {
+    const double move_sq = (x_[i] - x_prev_[i]).squaredNorm();
+    if (move_sq >= snap_sq) {
       Fail(fmt::format(
           "the implicit step moved node {} by {:.1f} px in one substep (substep {}), half a mesh "
           "edge or more: the mesh snapped through",
-          i, move, substep));
+          i, std::sqrt(move_sq), substep));
       return false;
     }
   }

@@ -268,6 +268,7 @@ TEST(Hypotheses, LopsidedElasticResidualIsUnevenStiffness) {
   // Without loaded frames the whole video's aligned residual decides.
   ResidualAnalysis free = Plain();
   free.regions = a.regions;
+  EXPECT_GT(Find(TraceHypotheses(free, {}), "uneven_stiffness").confidence, 0.3);
   free.mean_aligned_xor_px = 200.0;  // of 1000
   EXPECT_NEAR(FindEvidence(Find(TraceHypotheses(free, {}), "uneven_stiffness"), "not_a_shift").value,
               0.8, 1e-12);
