@@ -4,6 +4,10 @@
 //   BM_FullEvaluationWithEffect/none     the base model through named values
 //   BM_FullEvaluationWithEffect/<effect> the base model plus that effect
 //   BM_FullEvaluationWithEffect/all      every effect at once
+//   BM_FullEvaluationWithEffect/implicit/<none, uneven_stiffness,
+//     strain_stiffening>  with the implicit first-order step (the loop's):
+//     what the rest-stiffness probe and the per-frame re-linearisation of
+//     the stiffening springs cost
 //
 //   build/bench/calib_bench --benchmark_filter=WithEffect
 
@@ -49,8 +53,9 @@ ParameterValues ValuesFor(const ModelDefinition& model) {
   return values;
 }
 
-void FullEvaluationWithEffects(benchmark::State& state, const ModelDefinition& model) {
-  Evaluator evaluator(Scene(), SimulationOptions{}, model);
+void FullEvaluationWithEffects(benchmark::State& state, const ModelDefinition& model,
+                               const SimulationOptions& options) {
+  Evaluator evaluator(Scene(), options, model);
   const ParameterValues values = ValuesFor(model);
   for (auto _ : state) {
     const EvaluationResult result = evaluator.Evaluate(values);
@@ -62,10 +67,13 @@ void FullEvaluationWithEffects(benchmark::State& state, const ModelDefinition& m
 }
 
 const bool kRegistered = [] {
-  const auto add = [](const std::string& label, ModelDefinition model) {
+  const auto add = [](const std::string& label, ModelDefinition model,
+                      SimulationOptions options = {}) {
     benchmark::RegisterBenchmark(
         ("BM_FullEvaluationWithEffect/" + label).c_str(),
-        [model](benchmark::State& state) { FullEvaluationWithEffects(state, model); })
+        [model, options](benchmark::State& state) {
+          FullEvaluationWithEffects(state, model, options);
+        })
         ->Unit(benchmark::kMillisecond);
   };
   add("none", ModelDefinition{});
@@ -75,6 +83,11 @@ const bool kRegistered = [] {
     all.effects.push_back(info.name);
   }
   add("all", all);
+  SimulationOptions implicit;
+  implicit.integrator = IntegratorKind::kImplicitFirstOrder;
+  add("implicit/none", ModelDefinition{}, implicit);
+  add("implicit/uneven_stiffness", ModelDefinition{{"uneven_stiffness"}}, implicit);
+  add("implicit/strain_stiffening", ModelDefinition{{"strain_stiffening"}}, implicit);
   return true;
 }();
 

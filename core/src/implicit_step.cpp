@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace calib {
 namespace {
@@ -54,7 +55,8 @@ SparseMatrix UnitJacobian(const Model& model, const ModelParameters& params, boo
 
 }  // namespace
 
-ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<const double> movable) {
+ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<const double> movable,
+                                               bool edge_stiffness) {
   const int n = static_cast<int>(movable.size());
   std::vector<int> coordinate_of_unknown;
   std::vector<int> unknown_of_coordinate(2 * static_cast<size_t>(n), -1);
@@ -93,8 +95,24 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   // the patterns (and the diagonal), so the factor stays sparse.
   SparseMatrix identity(m, m);
   identity.setIdentity();
-  const SparseMatrix pattern = distance.cwiseAbs() + area.cwiseAbs() + angle.cwiseAbs() +
-                               damping.cwiseAbs() + identity;
+  SparseMatrix pattern = distance.cwiseAbs() + area.cwiseAbs() + angle.cwiseAbs() +
+                         damping.cwiseAbs() + identity;
+  const Mesh& mesh = model.mesh();
+  if (edge_stiffness) {
+    // Every edge's node blocks, whatever the unit matrices' exact zeros.
+    std::vector<Triplet> blocks;
+    for (const auto& [i, j] : mesh.edges) {
+      for (int a : {2 * i, 2 * i + 1, 2 * j, 2 * j + 1}) {
+        for (int b : {2 * i, 2 * i + 1, 2 * j, 2 * j + 1}) {
+          const int r = unknown_of_coordinate[a], c = unknown_of_coordinate[b];
+          if (r >= 0 && c >= 0) blocks.emplace_back(r, c, 1.0);
+        }
+      }
+    }
+    SparseMatrix edge_pattern(m, m);
+    edge_pattern.setFromTriplets(blocks.begin(), blocks.end());
+    pattern += edge_pattern;
+  }
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse_order;
   Eigen::AMDOrdering<int>()(pattern, inverse_order);
   const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order =
@@ -136,6 +154,40 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   damping_ = values_on_pattern(damping);
   diagonal_.resize(m);
   for (int k = 0; k < m; ++k) diagonal_[k] = position(k, k);
+  if (edge_stiffness) {
+    upper_ = A_.transpose();
+    upper_.makeCompressed();
+    const auto upper_position = [&](int r, int c) {  // r <= c, on the pattern
+      const int* begin = upper_.innerIndexPtr() + upper_.outerIndexPtr()[c];
+      const int* end = upper_.innerIndexPtr() + upper_.outerIndexPtr()[c + 1];
+      const int* found = std::lower_bound(begin, end, r);
+      if (found == end || *found != r) {
+        throw std::logic_error(fmt::format("implicit step: entry ({}, {}) is not on the pattern", r, c));
+      }
+      return static_cast<int>(found - upper_.innerIndexPtr());
+    };
+    upper_of_lower_.resize(A_.nonZeros());
+    for (int c = 0; c < m; ++c) {
+      for (int p = A_.outerIndexPtr()[c]; p < A_.outerIndexPtr()[c + 1]; ++p) {
+        upper_of_lower_[p] = upper_position(c, A_.innerIndexPtr()[p]);
+      }
+    }
+    const auto entry = [&](int coordinate_a, int coordinate_b) {
+      const int a = unknown_of_coordinate[coordinate_a], b = unknown_of_coordinate[coordinate_b];
+      if (a < 0 || b < 0) return -1;
+      const int r = renumbered(a), c = renumbered(b);
+      return upper_position(std::min(r, c), std::max(r, c));
+    };
+    edge_positions_.reserve(mesh.edges.size());
+    for (const auto& [i, j] : mesh.edges) {
+      const int ix = 2 * i, iy = 2 * i + 1, jx = 2 * j, jy = 2 * j + 1;
+      edge_positions_.push_back({entry(ix, ix), entry(iy, iy), entry(ix, iy), entry(jx, jx),
+                                 entry(jy, jy), entry(jx, jy), entry(ix, jx), entry(ix, jy),
+                                 entry(iy, jx), entry(iy, jy)});
+    }
+    configured_.assign(A_.nonZeros(), 0.0);
+    shape_factor_.analyzePattern(upper_);
+  }
 
   // For the extra forces' stiffness: each column's rows over the whole
   // (symmetric) pattern with the position of their lower-triangle entry,
@@ -250,20 +302,59 @@ bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
   }
   const double mass_over_h = params.mass / h;
   h_over_m_ = h / params.mass;
-  // The cached columns of A^-1 belong to the old matrix.
-  std::fill(inverse_column_of_unknown_.begin(), inverse_column_of_unknown_.end(), -1);
-  inverse_columns_.clear();
   for (int p : diagonal_) a[p] += mass_over_h;
+  if (!configured_.empty()) std::copy(a, a + configured_.size(), configured_.begin());
+  configured_params_ = params;
+  configured_h_ = h;
+  ForgetSolves();
+  shape_active_ = false;
   if (A_.rows() == 0) return true;
   factor_.factorize(A_);
-  if (factor_.info() != Eigen::Success || !(factor_.vectorD().minCoeff() > 0.0)) {
-    if (error != nullptr) {
-      *error = fmt::format(
-          "implicit first-order step: m / h + K0 + k_d / h D0 is not positive definite "
-          "(k_distance = {}, k_area = {}, k_angle = {}, k_damping = {}, mass = {}, h = {}{})",
-          params.k_distance, params.k_area, params.k_angle, params.k_damping, params.mass, h,
-          has_extra_ ? "; with the effects' stiffness" : "");
-    }
+  return Factorized(factor_, params, h, error);
+}
+
+void ImplicitFirstOrderStep::ForgetSolves() {
+  std::fill(inverse_column_of_unknown_.begin(), inverse_column_of_unknown_.end(), -1);
+  inverse_columns_.clear();
+  inverse_turn_valid_ = false;
+}
+
+template <class Factor>
+bool ImplicitFirstOrderStep::Factorized(const Factor& factor, const ModelParameters& params,
+                                        double h, std::string* error) const {
+  if (factor.info() == Eigen::Success && factor.vectorD().minCoeff() > 0.0) return true;
+  if (error != nullptr) {
+    *error = fmt::format(
+        "implicit first-order step: m / h + K0 + k_d / h D0 is not positive definite "
+        "(k_distance = {}, k_area = {}, k_angle = {}, k_damping = {}, mass = {}, h = {}{})",
+        params.k_distance, params.k_area, params.k_angle, params.k_damping, params.mass, h,
+        has_extra_ ? "; with the effects' stiffness" : "");
+  }
+  return false;
+}
+
+void ImplicitFirstOrderStep::BeginShapeStiffness() {
+  double* upper = upper_.valuePtr();
+  for (size_t p = 0; p < configured_.size(); ++p) upper[upper_of_lower_[p]] = configured_[p];
+}
+
+void ImplicitFirstOrderStep::AddEdgeStiffness(int edge, double k, const Vec2& u) {
+  const std::array<int, 10>& p = edge_positions_[edge];
+  double* a = upper_.valuePtr();
+  const double xx = k * u.x() * u.x(), yy = k * u.y() * u.y(), xy = k * u.x() * u.y();
+  const double block[10] = {xx, yy, xy, xx, yy, xy, -xx, -xy, -xy, -yy};
+  for (int t = 0; t < 10; ++t) {
+    if (p[t] >= 0) a[p[t]] += block[t];
+  }
+}
+
+bool ImplicitFirstOrderStep::FinishShapeStiffness(std::string* error) {
+  ForgetSolves();
+  shape_active_ = true;
+  if (upper_.rows() == 0) return true;
+  shape_factor_.factorize(upper_);
+  if (!Factorized(shape_factor_, configured_params_, configured_h_, error)) {
+    if (error != nullptr) *error += " with the springs' stiffness at the current shape";
     return false;
   }
   return true;
@@ -317,7 +408,7 @@ void ImplicitFirstOrderStep::Step(std::span<const Vec2> f, std::span<Vec2> x,
   }
   const double f_dot_turn = turn_norm_sq_ > 0.0 ? rhs_.dot(turn_) : 0.0;
   if (f_dot_turn != 0.0) rhs_ -= (f_dot_turn / turn_norm_sq_) * turn_;
-  solution_ = factor_.solve(rhs_);
+  Solve(rhs_, solution_);
   FinishResponse(f_dot_turn, solution_);
   const Eigen::VectorXd* dx = &solution_;
   if (!contacts.empty()) {
@@ -338,7 +429,7 @@ const double* ImplicitFirstOrderStep::InverseColumn(int unknown) {
     inverse_columns_.resize(inverse_columns_.size() + m);
     rhs_.setZero();  // free once the step's own solve is done
     rhs_[unknown] = 1.0;
-    Eigen::Map<Eigen::VectorXd>(inverse_columns_.data() + slot * m, m) = factor_.solve(rhs_);
+    Solve(rhs_, Eigen::Map<Eigen::VectorXd>(inverse_columns_.data() + slot * m, m));
   }
   return inverse_columns_.data() + slot * m;
 }
@@ -372,7 +463,7 @@ void ImplicitFirstOrderStep::ResponseOf(const StepContact& contact, const Vec2& 
   });
   if (turn_norm_sq_ > 0.0 && g_dot_turn != 0.0) {
     if (!inverse_turn_valid_) {
-      inverse_turn_ = factor_.solve(turn_);
+      Solve(turn_, inverse_turn_);
       inverse_turn_valid_ = true;
     }
     out -= (g_dot_turn / turn_norm_sq_) * inverse_turn_;

@@ -106,6 +106,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
     if (hooks.after_frame) after_frame_effects_.push_back(effect.get());
     if (hooks.step_limit) step_limit_effects_.push_back(effect.get());
     if (hooks.forces && hooks.rest_stiffness) rest_stiffness_effects_.push_back(effect.get());
+    if (hooks.forces && hooks.shape_stiffness) shape_stiffness_effects_.push_back(effect.get());
     const auto claim = [&](const EffectTerm*& slot, const char* what) {
       if (slot != nullptr) {
         throw std::invalid_argument(fmt::format("effects '{}' and '{}' both change {}; use one",
@@ -118,7 +119,8 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
     effects_.push_back(std::move(effect));
   }
   if (options.integrator == IntegratorKind::kImplicitFirstOrder) {
-    implicit_step_ = std::make_unique<ImplicitFirstOrderStep>(model_, inverse_weight_);
+    implicit_step_ = std::make_unique<ImplicitFirstOrderStep>(model_, inverse_weight_,
+                                                              !shape_stiffness_effects_.empty());
     if (!rest_stiffness_effects_.empty()) zero_velocity_.assign(mesh.NumNodes(), Vec2::Zero());
     snap_px_ = 0.5 * MeasureQuality(mesh).mean_edge_px;
     size_t boundary_edges = 0;
@@ -232,6 +234,20 @@ bool Simulator::Substep(int substep) {
   const int n = mesh_.NumNodes();
   const double h = scene_.frame_time_s / options_.substeps;
   const double alpha0 = static_cast<double>(substep) / options_.substeps;
+
+  if (implicit_ && substep == 0 && !shape_stiffness_effects_.empty()) {
+    // Springs that stiffen with strain: their stiffness at this frame's
+    // shape goes into the step's matrix.
+    implicit_step_->BeginShapeStiffness();
+    for (const EffectTerm* effect : shape_stiffness_effects_) {
+      effect->AddShapeStiffness(x_, *implicit_step_);
+    }
+    std::string error;
+    if (!implicit_step_->FinishShapeStiffness(&error)) {
+      Fail(fmt::format("{} (frame {})", error, frame_));
+      return false;
+    }
+  }
 
   model_.ComputeForces(force_params_, x_, v_, f_, force_workspace_);
   for (const EffectTerm* effect : force_effects_) effect->AddForces(x_, v_, f_, nullptr);

@@ -13,6 +13,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
 #include <cmath>
 #include <random>
 
@@ -165,6 +167,153 @@ TEST(ImplicitStep, AStiffFieldInTheMatrixDoesNotOvershoot) {
   const double explicit_field = relaxed(nullptr);
   EXPECT_LT(with_field, 0.05);
   EXPECT_GT(explicit_field, 0.3) << "with the field in the matrix: " << with_field;
+}
+
+// Strain stiffening (shape_stiffness) with coefficient k3 on `mesh`.
+std::unique_ptr<EffectTerm> Stiffening(const Mesh& mesh, const ModelParameters& base, double k3) {
+  std::unique_ptr<EffectTerm> effect = MakeEffect("strain_stiffening");
+  EXPECT_TRUE(effect->hooks().shape_stiffness);
+  effect->Bind(mesh);
+  effect->Configure({{"stiffening_k3", k3}}, base);
+  return effect;
+}
+
+// The edge stiffness an effect reports, assembled densely over 2N
+// coordinates.
+class DenseEdgeStiffness final : public EdgeStiffnessSink {
+ public:
+  explicit DenseEdgeStiffness(const Mesh& mesh)
+      : mesh_(mesh), k_(Eigen::MatrixXd::Zero(2 * mesh.NumNodes(), 2 * mesh.NumNodes())) {}
+  void AddEdgeStiffness(int edge, double k, const Vec2& u) override {
+    const auto [i, j] = mesh_.edges[edge];
+    const Eigen::Matrix2d block = k * u * u.transpose();
+    k_.block<2, 2>(2 * i, 2 * i) += block;
+    k_.block<2, 2>(2 * j, 2 * j) += block;
+    k_.block<2, 2>(2 * i, 2 * j) -= block;
+    k_.block<2, 2>(2 * j, 2 * i) -= block;
+  }
+  const Eigen::MatrixXd& matrix() const { return k_; }
+
+ private:
+  const Mesh& mesh_;
+  Eigen::MatrixXd k_;
+};
+
+// A grid squeezed by 25 % along y and jittered: every edge strained.
+std::vector<Vec2> Squeezed(const Mesh& mesh) {
+  std::vector<Vec2> x = calib::testing::Jittered(mesh.rest_positions, 0.5, 11);
+  for (Vec2& p : x) p.y() = 60.0 + 0.75 * (p.y() - 60.0);
+  return x;
+}
+
+TEST(ImplicitStep, AStiffeningSpringsShapeStiffnessIsItsForcesAxialDerivative) {
+  // The axial stiffness the effect reports, plus each spring's geometric
+  // stiffness across its axis (tension / length), is the Jacobian of its
+  // forces at a strained shape, by central differences.
+  const Mesh mesh = MakeGridMesh(5, 4, 10.0, Vec2(40, 60));
+  const double k3 = 300.0;
+  const std::unique_ptr<EffectTerm> effect = Stiffening(mesh, Mixed(), k3);
+  const std::vector<Vec2> x = Squeezed(mesh);
+  DenseEdgeStiffness axial(mesh);
+  effect->AddShapeStiffness(x, axial);
+  ASSERT_GT(axial.matrix().norm(), 0.0);
+  Eigen::MatrixXd geometric = Eigen::MatrixXd::Zero(2 * mesh.NumNodes(), 2 * mesh.NumNodes());
+  for (int e = 0; e < mesh.NumEdges(); ++e) {
+    const auto [i, j] = mesh.edges[e];
+    const Vec2 d = x[j] - x[i];
+    const double length = d.norm(), rest = mesh.rest_length_px[e];
+    const double strain = length / rest - 1.0;
+    const double tension = k3 * strain * strain * strain / rest;
+    const Vec2 u = d / length;
+    const Eigen::Matrix2d block = (tension / length) * (Eigen::Matrix2d::Identity() - u * u.transpose());
+    geometric.block<2, 2>(2 * i, 2 * i) += block;
+    geometric.block<2, 2>(2 * j, 2 * j) += block;
+    geometric.block<2, 2>(2 * i, 2 * j) -= block;
+    geometric.block<2, 2>(2 * j, 2 * i) -= block;
+  }
+  const std::vector<Vec2> zero(mesh.NumNodes(), Vec2::Zero());
+  Eigen::MatrixXd jacobian(2 * mesh.NumNodes(), 2 * mesh.NumNodes());
+  const double e = 1e-5;
+  for (int c = 0; c < 2 * mesh.NumNodes(); ++c) {
+    std::vector<Vec2> plus(x), minus(x);
+    plus[c / 2][c % 2] += e;
+    minus[c / 2][c % 2] -= e;
+    std::vector<Vec2> f_plus(mesh.NumNodes(), Vec2::Zero()), f_minus(mesh.NumNodes(), Vec2::Zero());
+    effect->AddForces(plus, zero, f_plus, nullptr);
+    effect->AddForces(minus, zero, f_minus, nullptr);
+    jacobian.col(c) = (Flat(f_minus) - Flat(f_plus)) / (2.0 * e);
+  }
+  EXPECT_LT((axial.matrix() + geometric - jacobian).norm(), 1e-6 * jacobian.norm());
+  // Positive semi-definite (what keeps the step's matrix definite).
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(axial.matrix()).eigenvalues().minCoeff(),
+            -1e-9 * axial.matrix().norm());
+  // At rest the springs have no stiffness of their own.
+  DenseEdgeStiffness at_rest(mesh);
+  effect->AddShapeStiffness(mesh.rest_positions, at_rest);
+  EXPECT_EQ(at_rest.matrix().norm(), 0.0);
+}
+
+// A squeezed mesh whose stiffening springs dominate its base springs,
+// relaxed by one step with every force in F. With the springs' stiffness at
+// this shape in the matrix the step is a Newton step towards the rest
+// shape; without it the stiffening force is explicit and overshoots.
+TEST(ImplicitStep, AStiffenedMeshRelaxesWhenItsSpringsAreReLinearisedAtItsShape) {
+  const Mesh mesh = MakeGridMesh(6, 4, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  const std::vector<double> movable(mesh.NumNodes(), 1.0);
+  const ModelParameters p = [] {
+    ModelParameters undamped = Mixed();
+    undamped.k_damping = 0.0;
+    return undamped;
+  }();
+  const std::unique_ptr<EffectTerm> effect = Stiffening(mesh, p, 1e6);
+  const std::vector<Vec2> zero(mesh.NumNodes(), Vec2::Zero());
+  const std::vector<Vec2> x0 = Squeezed(mesh);
+  const auto forces = [&](const std::vector<Vec2>& x) {
+    std::vector<Vec2> f(mesh.NumNodes());
+    model.ComputeForces(p, x, zero, f);
+    effect->AddForces(x, zero, f, nullptr);
+    return f;
+  };
+  const auto relaxed = [&](bool relinearise) {
+    ImplicitFirstOrderStep step(model, movable, true);
+    std::string error;
+    EXPECT_TRUE(step.Configure(p, 1.0 / 300.0, &error)) << error;
+    if (relinearise) {
+      step.BeginShapeStiffness();
+      effect->AddShapeStiffness(x0, step);
+      EXPECT_TRUE(step.FinishShapeStiffness(&error)) << error;
+    }
+    std::vector<Vec2> x = x0;
+    step.Step(forces(x0), x);
+    return Flat(forces(x)).norm() / Flat(forces(x0)).norm();
+  };
+  const double relinearised = relaxed(true);
+  const double explicit_springs = relaxed(false);
+  EXPECT_LT(relinearised, 0.5);
+  EXPECT_GT(explicit_springs, 10.0) << "re-linearised: " << relinearised;
+
+  // Back to the configured matrix, the step is the plain one (to rounding:
+  // the re-linearised matrix is factorised from its upper triangle).
+  ImplicitFirstOrderStep plain(model, movable, true), again(model, movable, true);
+  std::string error;
+  ASSERT_TRUE(plain.Configure(p, 1.0 / 300.0, &error)) << error;
+  ASSERT_TRUE(again.Configure(p, 1.0 / 300.0, &error)) << error;
+  again.BeginShapeStiffness();
+  effect->AddShapeStiffness(x0, again);
+  ASSERT_TRUE(again.FinishShapeStiffness(&error)) << error;
+  again.BeginShapeStiffness();
+  ASSERT_TRUE(again.FinishShapeStiffness(&error)) << error;
+  std::vector<Vec2> x_plain = x0, x_again = x0;
+  plain.Step(forces(x0), x_plain);
+  again.Step(forces(x0), x_again);
+  double largest_move = 0.0, largest_difference = 0.0;
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    largest_move = std::max(largest_move, (x_plain[i] - x0[i]).norm());
+    largest_difference = std::max(largest_difference, (x_plain[i] - x_again[i]).norm());
+  }
+  ASSERT_GT(largest_move, 0.0);
+  EXPECT_LT(largest_difference, 1e-9 * largest_move);
 }
 
 TEST(ImplicitStep, RigidMotionsAreFreeAndEveryOtherMotionIsResisted) {

@@ -49,6 +49,8 @@ PushSplit EffectTerm::SplitPush(const PushInfo& push) const {
   return split;
 }
 
+void EffectTerm::AddShapeStiffness(std::span<const Vec2>, EdgeStiffnessSink&) const {}
+
 double EffectTerm::Energy(std::span<const Vec2> x) const {
   if (!info().has_energy) return 0.0;
   std::vector<Vec2> v(x.size(), Vec2::Zero()), f(x.size(), Vec2::Zero());

@@ -6,6 +6,9 @@
 // so its force is k_D strain + k_3 strain^3 (over D0): unchanged at small
 // strain, stiffer at large strain. The force loop is the kernel with the
 // inverse rest lengths precomputed (one square root, one division an edge).
+// Its stiffness along an edge, 3 k_3 strain^2 / D0^2, is zero at rest and
+// grows with the dent, so the implicit step takes it at the current shape
+// once a frame (EffectHooks::shape_stiffness).
 
 #include "calib/core/effect_kernels.h"
 #include "effect_factories.h"
@@ -27,7 +30,7 @@ class StrainStiffeningEffect final : public EffectTerm {
         true};
     return kInfo;
   }
-  EffectHooks hooks() const override { return {.forces = true}; }
+  EffectHooks hooks() const override { return {.forces = true, .shape_stiffness = true}; }
 
   void Bind(const Mesh& mesh) override {
     mesh_ = &mesh;
@@ -59,6 +62,21 @@ class StrainStiffeningEffect final : public EffectTerm {
       sum += strain2 * strain2;
     }
     if (energy != nullptr) *energy += 0.25 * k_3_ * sum;
+  }
+
+  void AddShapeStiffness(std::span<const Vec2> x, EdgeStiffnessSink& sink) const override {
+    if (k_3_ == 0.0) return;
+    const int num_edges = mesh_->NumEdges();
+    for (int e = 0; e < num_edges; ++e) {
+      const auto [i, j] = mesh_->edges[e];
+      const Vec2 d = x[j] - x[i];
+      const double length = d.norm();
+      if (!(length > 0.0)) continue;
+      const double strain = length * inv_rest_[e] - 1.0;
+      // d/dL of the force k_3 strain^3 / D0
+      const double k = 3.0 * k_3_ * strain * strain * inv_rest_[e] * inv_rest_[e];
+      if (k > 0.0) sink.AddEdgeStiffness(e, k, d / length);
+    }
   }
 
  private:

@@ -14,7 +14,10 @@
 //                 processes, e.g. a rest shape that drifts);
 //   dynamics      SecondOrderDamping: the integrator becomes second order;
 //   step_limit    LimitStep: the step is limited after integration (friction);
-//   push          SplitPush: how the measured push acts on the mesh.
+//   push          SplitPush: how the measured push acts on the mesh;
+//   shape_stiffness AddShapeStiffness: the stiffness of the effect's edge
+//                 springs at the current shape, which the implicit step
+//                 takes into its matrix once a frame (stiffening springs).
 //
 // Life cycle, all on one thread: Bind(mesh) once (allocates every buffer),
 // then per candidate Configure(values, base) and Reset(), then per substep
@@ -61,6 +64,25 @@ struct EffectHooks {
   /// effect adds is then as stable as the base model's, where left explicit
   /// it would make the step overshoot by the added share every substep.
   bool rest_stiffness = false;
+  /// The forces are springs along the mesh's edges whose stiffness grows
+  /// with their strain (zero at rest, so `rest_stiffness` cannot hold it).
+  /// The implicit first-order step re-linearises them at the start of every
+  /// frame (AddShapeStiffness) and refactorises its matrix: left explicit,
+  /// a spring stiffened by a deep dent overshoots every substep.
+  bool shape_stiffness = false;
+};
+
+/// Where an effect adds the stiffness of its edge springs at a shape
+/// (EffectTerm::AddShapeStiffness): edge `edge` of the mesh gains the axial
+/// stiffness k >= 0 (force per px) along the unit vector u, i.e. the blocks
+/// k u u^T of its two nodes (positive semi-definite: a spring's geometric
+/// stiffness across its axis is left out, so the matrix stays definite).
+class EdgeStiffnessSink {
+ public:
+  virtual void AddEdgeStiffness(int edge, double k, const Vec2& u) = 0;
+
+ protected:
+  ~EdgeStiffnessSink() = default;
 };
 
 /// One substep's integration, as LimitStep sees it.
@@ -134,6 +156,11 @@ class EffectTerm {
 
   /// hooks().push: how the measured push acts on the mesh.
   virtual PushSplit SplitPush(const PushInfo& push) const;
+
+  /// hooks().shape_stiffness: adds the axial stiffness of the effect's edge
+  /// springs at the positions `x` (#N) to `sink`, the derivative along
+  /// each edge of its force's magnitude. Allocates nothing.
+  virtual void AddShapeStiffness(std::span<const Vec2> x, EdgeStiffnessSink& sink) const;
 
   /// Energy of AddForces at `x` (zero velocities), with temporary buffers:
   /// for tests. 0 for an effect without energy.

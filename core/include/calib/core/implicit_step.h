@@ -57,7 +57,15 @@
 // for the whole candidate): the step stays one solve plus a few vector
 // sums. What the linearisation leaves the simulator's projections put
 // right.
+//
+// Springs that stiffen with strain (EffectHooks::shape_stiffness) have no
+// stiffness at the rest shape. Built with `edge_stiffness`, the step takes
+// their axial stiffness at the current shape (BeginShapeStiffness, the
+// effect's AddEdgeStiffness calls, FinishShapeStiffness: once a frame) on
+// top of the configured matrix and refactorises it: numerically only, on
+// the pattern analysed once, which holds every edge's node blocks.
 
+#include "calib/core/effects.h"
 #include "calib/core/mesh.h"
 #include "calib/core/model.h"
 #include "calib/core/parameters.h"
@@ -88,11 +96,14 @@ struct StepContact {
   Vec2 obstacle_step = Vec2::Zero();
 };
 
-class ImplicitFirstOrderStep {
+class ImplicitFirstOrderStep final : public EdgeStiffnessSink {
  public:
   /// Assembles the unit matrices of `model` (at its mesh's rest shape) for
-  /// the nodes with `movable` != 0. `movable` must outlive this.
-  ImplicitFirstOrderStep(const Model& model, std::span<const double> movable);
+  /// the nodes with `movable` != 0. `movable` must outlive this. With
+  /// `edge_stiffness`, the matrix's pattern holds every mesh edge's node
+  /// blocks, for AddEdgeStiffness.
+  ImplicitFirstOrderStep(const Model& model, std::span<const double> movable,
+                         bool edge_stiffness = false);
 
   /// Forces added to the model's (ADDS them to f at the positions x, #N
   /// each, zero velocities) whose stiffness the step also takes implicitly.
@@ -126,6 +137,16 @@ class ImplicitFirstOrderStep {
   /// contact's coordinates have been seen since Configure.
   void Step(std::span<const Vec2> f, std::span<Vec2> x, std::span<const StepContact> contacts,
             double friction);
+
+  /// Re-linearisation at a shape, after a successful Configure (built with
+  /// `edge_stiffness`): BeginShapeStiffness goes back to the configured
+  /// matrix, AddEdgeStiffness adds an edge spring's axial stiffness k u u^T
+  /// (k >= 0), FinishShapeStiffness refactorises (false with *error set
+  /// when the matrix is not positive definite). Allocates nothing but the
+  /// factorisation's scratch.
+  void BeginShapeStiffness();
+  void AddEdgeStiffness(int edge, double k, const Vec2& u) override;
+  bool FinishShapeStiffness(std::string* error);
 
   /// Contacts held by one step at most; others are left to the projections.
   static constexpr int kMaxActiveContacts = 32;
@@ -162,6 +183,34 @@ class ImplicitFirstOrderStep {
   // A's pattern has the values value(position).
   template <class Value>
   Eigen::SparseMatrix<double> OverCoordinates(Value value) const;
+  // The values of A_ after Configure (the shape's stiffness goes on top).
+  // The re-linearised matrix is kept as its upper triangle (upper_, A_
+  // transposed: where upper_of_lower_ says), which Eigen's factorisation
+  // reads in place where a lower one is copied every time; per mesh edge
+  // the positions in upper_ of its node blocks' entries (-1 for a clamped
+  // node's): ii xx, ii yy, ii xy, jj xx, jj yy, jj xy, ij xx, ij xy, ij yx,
+  // ij yy. shape_active_: the last factorisation was FinishShapeStiffness's.
+  std::vector<double> configured_;
+  SparseMatrix upper_;
+  std::vector<int> upper_of_lower_;
+  std::vector<std::array<int, 10>> edge_positions_;
+  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Upper, Eigen::NaturalOrdering<int>> shape_factor_;
+  bool shape_active_ = false;
+  // dest = A^-1 rhs with the current factor.
+  template <class Rhs, class Dest>
+  void Solve(const Rhs& rhs, Dest&& dest) const {
+    if (shape_active_) {
+      dest = shape_factor_.solve(rhs);
+    } else {
+      dest = factor_.solve(rhs);
+    }
+  }
+  void ForgetSolves();  // the cached columns of A^-1 belong to the old matrix
+  template <class Factor>
+  bool Factorized(const Factor& factor, const ModelParameters& params, double h,
+                  std::string* error) const;
+  ModelParameters configured_params_;
+  double configured_h_ = 0.0;
   std::vector<int> diagonal_;  // index of each unknown's diagonal entry in A_'s values
   SparseMatrix A_;             // lower triangle of the step's matrix, permuted
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> factor_;

@@ -174,7 +174,7 @@ class Simulator {
   std::vector<ParameterSpec> parameter_specs_;
   std::vector<std::unique_ptr<EffectTerm>> effects_;
   std::vector<EffectTerm*> force_effects_, after_substep_effects_, after_frame_effects_,
-      step_limit_effects_, rest_stiffness_effects_;
+      step_limit_effects_, rest_stiffness_effects_, shape_stiffness_effects_;
   std::vector<Vec2> zero_velocity_;  // #N with rest-stiffness effects
   const EffectTerm* push_effect_ = nullptr;
   const EffectTerm* dynamics_effect_ = nullptr;
