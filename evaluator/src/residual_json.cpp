@@ -173,6 +173,9 @@ void VisitPush(S& p, F& f) {
   f("stopped_frames", p.stopped_frames);
   f("hold_force_change", p.hold_force_change);
   f("load_eccentricity", p.load_eccentricity);
+  f("force_travel_exponent", p.force_travel_exponent);
+  f("force_travel_frames", p.force_travel_frames);
+  f("force_travel_correlation", p.force_travel_correlation);
 }
 
 template <class S, class F>

@@ -43,6 +43,41 @@ double Slope(const std::vector<double>& t, const std::vector<double>& y) {
   return den > 1e-300 ? (n * sty - st * sy) / den : 0.0;
 }
 
+// PushSummary::force_travel_exponent: log F against log travel over the
+// loading frames up to the peak force (F >= 10 % of the peak), the travel
+// along the push axis counted from the contact, the last frame before the
+// peak with F under 2 % of it.
+void MeasureForceAgainstTravel(const std::vector<ResidualFrame>& frames, const Scene& scene,
+                               int pusher, PushSummary& push) {
+  const int peak = push.peak_frame;
+  if (pusher < 0 || peak <= 0 || !(push.peak_force_n > 0.0)) return;
+  const double f_peak = frames[peak].force_n;
+  int contact = 0;
+  for (int f = peak; f >= 0; --f) {
+    if (frames[f].force_n < 0.02 * f_peak) {
+      contact = f;
+      break;
+    }
+  }
+  std::vector<double> log_travel, log_force;
+  double travel = 0.0;
+  for (int f = contact + 1; f <= peak; ++f) {
+    travel += std::max(0.0, (scene.ObstaclesAt(f)[pusher].centre -
+                             scene.ObstaclesAt(f - 1)[pusher].centre)
+                                .dot(push.push_axis));
+    if (frames[f].phase != LoadPhase::kLoading || frames[f].force_n < 0.1 * f_peak ||
+        !(travel > 0.0)) {
+      continue;
+    }
+    log_travel.push_back(std::log(travel));
+    log_force.push_back(std::log(frames[f].force_n));
+  }
+  push.force_travel_frames = static_cast<int>(log_travel.size());
+  if (log_travel.size() < 6) return;
+  push.force_travel_exponent = Slope(log_travel, log_force);
+  push.force_travel_correlation = Correlation(log_travel, log_force);
+}
+
 // Moving median of width 2h + 1.
 std::vector<double> MovingMedian(const std::vector<double>& v, int h) {
   const int n = static_cast<int>(v.size());
@@ -491,6 +526,7 @@ ResidualAnalysis ResidualAnalyzer::Finish() const {
             (frames_[end].force_n - frames_[start].force_n) / frames_[start].force_n;
       }
     }
+    MeasureForceAgainstTravel(frames_, scene_, pusher_, push);
   }
 
   // Residual against deformation.
@@ -606,10 +642,12 @@ std::string ResidualAnalysis::BriefReport() const {
   if (push.has_push) {
     s += fmt::format(
         "  push: peak frame {}, {:.2f} N, distance {:.1f} px; offset~push r {:.2f}; after stop "
-        "mesh {:+.2f} px, object {:+.2f} px over {} frames; hold force change {:+.0f}%\n",
+        "mesh {:+.2f} px, object {:+.2f} px over {} frames; hold force change {:+.0f}%; force ~ "
+        "travel^{:.2f} (r {:.2f}, {} frames)\n",
         push.peak_frame, push.peak_force_n, push.push_distance_px, push.offset_push_correlation,
         push.mesh_travel_after_stop_px, push.object_travel_after_stop_px, push.stopped_frames,
-        100.0 * push.hold_force_change);
+        100.0 * push.hold_force_change, push.force_travel_exponent, push.force_travel_correlation,
+        push.force_travel_frames);
   }
   s += fmt::format(
       "  strain: XOR by deformation third {:.0f} / {:.0f} / {:.0f} px, r {:.2f}, exponent {:.2f}; "

@@ -240,6 +240,55 @@ TEST(Hypotheses, ResidualGrowingFasterThanDeformationIsStrainStiffening) {
   EXPECT_NEAR(FindEvidence(hs.front(), "sign_flip").value, 0.45, 1e-12);
 }
 
+// Pushed(), with the sensor's force growing as the pusher's travel^exponent
+// over 80 loading frames with correlation r.
+ResidualAnalysis ForceGrowingAs(double exponent, double r) {
+  ResidualAnalysis a = Pushed();
+  a.push.force_travel_exponent = exponent;
+  a.push.force_travel_correlation = r;
+  a.push.force_travel_frames = 80;
+  return a;
+}
+
+TEST(Hypotheses, ForceGrowingFasterThanThePushIsStrainStiffening) {
+  // The pixels show nothing against deformation (a stiff fit absorbs the
+  // shape); the sensor's force grows as travel^1.6.
+  ResidualAnalysis a = ForceGrowingAs(1.6, 0.99);
+  const std::vector<Hypothesis> hs = TraceHypotheses(a, {});
+  EXPECT_EQ(hs.front().effect, "strain_stiffening");
+  const Evidence& force = FindEvidence(hs.front(), "force_stiffens");
+  EXPECT_DOUBLE_EQ(force.value, 1.6);
+  EXPECT_DOUBLE_EQ(force.support, 1.0);
+  EXPECT_EQ(FindEvidence(hs.front(), "error_grows_superlinearly").support, 0.0);
+  EXPECT_GT(hs.front().confidence, 0.5);
+
+  // A linear material (force ~ travel) and a scattered relation say nothing.
+  a.push.force_travel_exponent = 1.05;
+  EXPECT_EQ(FindEvidence(Find(TraceHypotheses(a, {}), "strain_stiffening"), "force_stiffens").support,
+            0.0);
+  a.push.force_travel_exponent = 1.6;
+  a.push.force_travel_correlation = 0.6;
+  EXPECT_EQ(Find(TraceHypotheses(a, {}), "strain_stiffening").confidence, 0.0);
+  // A residual as thin as what the base model leaves where it is the
+  // truth's match: nothing to explain.
+  a.push.force_travel_correlation = 0.99;
+  a.residual_thickness_px = 0.3;
+  a.p90_thickness_px = 0.35;
+  EXPECT_EQ(Find(TraceHypotheses(a, {}), "strain_stiffening").confidence, 0.0);
+  // Under the pixel signatures' significance floor (0.8 px), the force
+  // still counts.
+  a.p90_thickness_px = 0.75;
+  const std::vector<Hypothesis> thin = TraceHypotheses(a, {});
+  EXPECT_EQ(thin.front().effect, "strain_stiffening");
+  EXPECT_GT(thin.front().confidence, 0.5);
+  // Without a force to read, the evidence says so.
+  a.push.force_travel_exponent = NAN;
+  const std::vector<Hypothesis> unmeasured = TraceHypotheses(a, {});
+  const Evidence& none = FindEvidence(Find(unmeasured, "strain_stiffening"), "force_stiffens");
+  EXPECT_EQ(none.support, 0.0);
+  EXPECT_NE(none.statement.find("no force"), std::string::npos) << none.statement;
+}
+
 TEST(Hypotheses, LopsidedElasticResidualIsUnevenStiffness) {
   ResidualAnalysis a = Pushed();
   a.regions.side_asymmetry = 0.9;

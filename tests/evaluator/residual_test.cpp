@@ -429,14 +429,15 @@ TEST(ResidualAnalyzer, SwingingObjectOscillatesAgainstAStillMesh) {
 
 // A rectangle pushed from above by a finger disc that dents it; the mesh
 // never dents. After release the dent either stays (plastic) or fades with
-// time constant tau_s (viscoelastic).
+// time constant tau_s (viscoelastic). The sensor reads 4 N x
+// (dent / 20 px)^force_exponent.
 struct DentCase {
   Mesh mesh = testing::MakeGridMesh(12, 6, 10.0, Vec2(100.0, 100.0));  // [100,220) x [100,160)
   Scene scene;
   std::vector<BitMask> object;
   std::vector<double> dent_depth;
 
-  DentCase(bool plastic, double tau_s) {
+  DentCase(bool plastic, double tau_s, double force_exponent = 1.0) {
     const double fps = 30.0;
     const int frames = 100;
     const double radius = 25.0, depth = 20.0;
@@ -469,7 +470,7 @@ struct DentCase {
       dent_depth.push_back(dent);
       const Vec2 finger(160.0, 100.0 + d - radius);
       scene.obstacle_discs.push_back(Disc{finger, radius});
-      scene.forces.push_back(Vec2(0.0, 0.2 * std::max(0.0, d)));
+      scene.forces.push_back(Vec2(0.0, 4.0 * std::pow(std::max(0.0, d) / depth, force_exponent)));
       BitMask m = RectMask(320, 240, 100, 100, 220, 160);
       const Vec2 cut(160.0, 100.0 + dent - radius);
       for (int y = 100; y < 160; ++y) {
@@ -489,6 +490,32 @@ struct DentCase {
     return analyzer.Finish();
   }
 };
+
+TEST(ResidualAnalyzer, ForceAgainstTravelSaysHowTheMaterialAnswersADeeperDent) {
+  // Force ~ travel (a linear material) and ~ travel^2 (stiffening), the
+  // travel counted from the contact; the loading frames above a tenth of the
+  // peak force (dent 2..20 px).
+  // Under a quadratic law the force reaches 2 % of its peak only 2.5 px
+  // into the dent, so the travel counted from there reads a lower exponent.
+  const PushSummary linear = DentCase(false, 0.5, 1.0).Analyse().push;
+  EXPECT_NEAR(linear.force_travel_exponent, 1.0, 0.02);
+  const PushSummary quadratic = DentCase(false, 0.5, 2.0).Analyse().push;
+  EXPECT_GT(quadratic.force_travel_exponent, 1.5);
+  EXPECT_LE(quadratic.force_travel_exponent, 2.0);
+  for (const PushSummary& p : {linear, quadratic}) {
+    EXPECT_GT(p.force_travel_correlation, 0.99);
+    EXPECT_GE(p.force_travel_frames, 10);
+    EXPECT_LE(p.force_travel_frames, 17);
+  }
+  // No sensor, no force against travel (the push is found from the contact).
+  DentCase no_sensor(false, 0.5);
+  no_sensor.scene.force_obstacle = -1;
+  no_sensor.scene.forces.clear();
+  const PushSummary p = no_sensor.Analyse().push;
+  EXPECT_TRUE(p.has_push);
+  EXPECT_TRUE(std::isnan(p.force_travel_exponent));
+  EXPECT_EQ(p.force_travel_frames, 0);
+}
 
 TEST(ResidualAnalyzer, PlasticDentPersistsAfterRelease) {
   const ResidualAnalysis a = DentCase(true, 0.0).Analyse();

@@ -47,15 +47,13 @@ void ExpectNamed(const std::string& train, const std::string& holdout) {
   }
 }
 
-// Plasticity, viscoelastic relaxation, uneven stiffness, strong friction
-// with the table and inertia with gravity (a strip released from a bend,
-// swinging) are named and kept with the loop's default simulation (the
-// implicit step holding its contacts, outline contact, contact friction). Known gaps (docs/loop.md, "Known gaps"): on the other
-// bundled pairs the loop does not yet name the effect switched on (the
-// tracing ranks it too low, or the calibrated effect does not lower the
-// held-out error by more than the margin). The tests are kept, disabled, as
-// the acceptance checks still to meet. Run them with
-// --gtest_also_run_disabled_tests.
+// Every effect the generator makes is named and kept with the loop's
+// default simulation (the implicit step holding its contacts, outline
+// contact, contact friction): plasticity, viscoelastic relaxation, uneven
+// stiffness, strong friction with the table, strain stiffening (traced from
+// the sensor's force against the pusher's travel; its springs re-linearised
+// once a frame) and inertia with gravity (a strip released from a bend,
+// swinging).
 TEST(LoopOnSyntheticEffect, Plasticity) {
   ExpectNamed("push_plastic", "push_plastic_offset");
 }
@@ -71,7 +69,7 @@ TEST(LoopOnSyntheticEffect, TableFriction) {
 TEST(LoopOnSyntheticEffect, UnevenStiffness) {
   ExpectNamed("push_uneven", "push_uneven_offset");
 }
-TEST(LoopOnSyntheticEffect, DISABLED_StrainStiffening) {
+TEST(LoopOnSyntheticEffect, StrainStiffening) {
   ExpectNamed("push_stiffening", "push_stiffening_offset");
 }
 

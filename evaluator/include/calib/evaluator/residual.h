@@ -410,6 +410,17 @@ struct PushSummary {
   /// Offset side of the load: |contact site - rest centroid| along side_axis
   /// over half the rest shape's extent along it (0: central push).
   double load_eccentricity = 0.0;
+  /// How the sensor's force grows with the pusher's travel into the object
+  /// while it loads (model independent): the least-squares exponent p of
+  /// F ~ travel^p over the loading frames up to the peak force with F at
+  /// least a tenth of the peak, the travel counted from the contact (the
+  /// last frame before the peak with F under 2 % of the peak). A linear
+  /// material dented by a round pusher against a stop gives p ~ 1; one that
+  /// stiffens with strain gives more, one that yields or slides less. NaN
+  /// without a force sensor, a moving pusher or 6 such frames.
+  double force_travel_exponent = NAN;
+  int force_travel_frames = 0;
+  double force_travel_correlation = 0.0;  ///< of log F with log travel
 };
 
 /// Residual against deformation.
