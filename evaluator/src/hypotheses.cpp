@@ -444,7 +444,8 @@ Hypothesis TraceStrainStiffening(const ResidualAnalysis& a, double significance,
                  "loading frames)");
   const double pixels =
       significance * NoisyOr({{0.8, s_grow}, {0.5, s_convex}, {0.6, s_flip}});
-  // Either suffices (a noisy-or of the two).
+  // Either suffices: a noisy-or of the two, written out so that without
+  // the force's support the confidence is the pixels' to the bit.
   b.h.confidence = (1.0 - persistent_support) *
                    (pixels + (1.0 - pixels) * 0.9 * residual_left * s_force);
   b.h.summary = "good at small deformation, bad at large: strain stiffening";

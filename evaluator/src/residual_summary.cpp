@@ -43,6 +43,13 @@ double Slope(const std::vector<double>& t, const std::vector<double>& y) {
   return den > 1e-300 ? (n * sty - st * sy) / den : 0.0;
 }
 
+// How far the pusher moves into the object along `axis` from frame f - 1
+// to f, px (0 when it backs off).
+double PusherAdvance(const Scene& scene, int pusher, int f, const Vec2& axis) {
+  return std::max(
+      0.0, (scene.ObstaclesAt(f)[pusher].centre - scene.ObstaclesAt(f - 1)[pusher].centre).dot(axis));
+}
+
 // PushSummary::force_travel_exponent: log F against log travel over the
 // loading frames up to the peak force (F >= 10 % of the peak), the travel
 // along the push axis counted from the contact, the last frame before the
@@ -51,7 +58,7 @@ void MeasureForceAgainstTravel(const std::vector<ResidualFrame>& frames, const S
                                int pusher, PushSummary& push) {
   const int peak = push.peak_frame;
   if (pusher < 0 || peak <= 0 || !(push.peak_force_n > 0.0)) return;
-  const double f_peak = frames[peak].force_n;
+  const double f_peak = push.peak_force_n;
   int contact = 0;
   for (int f = peak; f >= 0; --f) {
     if (frames[f].force_n < 0.02 * f_peak) {
@@ -62,9 +69,7 @@ void MeasureForceAgainstTravel(const std::vector<ResidualFrame>& frames, const S
   std::vector<double> log_travel, log_force;
   double travel = 0.0;
   for (int f = contact + 1; f <= peak; ++f) {
-    travel += std::max(0.0, (scene.ObstaclesAt(f)[pusher].centre -
-                             scene.ObstaclesAt(f - 1)[pusher].centre)
-                                .dot(push.push_axis));
+    travel += PusherAdvance(scene, pusher, f, push.push_axis);
     if (frames[f].phase != LoadPhase::kLoading || frames[f].force_n < 0.1 * f_peak ||
         !(travel > 0.0)) {
       continue;
@@ -494,9 +499,7 @@ ResidualAnalysis ResidualAnalyzer::Finish() const {
     for (int f = 0; f < n; ++f) {
       const LoadPhase p = frames_[f].phase;
       if (f > 0 && IsLoaded(p) && pusher_ >= 0) {
-        so_far += std::max(0.0, (scene_.ObstaclesAt(f)[pusher_].centre -
-                                 scene_.ObstaclesAt(f - 1)[pusher_].centre)
-                                    .dot(a));
+        so_far += PusherAdvance(scene_, pusher_, f, a);
       }
       if (!IsLoaded(p)) continue;
       pushed.push_back(so_far);
