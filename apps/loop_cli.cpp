@@ -1,6 +1,6 @@
 #include "loop_cli.h"
 
-#include "calib/jobs/loop.h"
+#include "calib/discovery/loop.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>

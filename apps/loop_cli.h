@@ -1,6 +1,6 @@
 #pragma once
 // The loop subcommand of calib: `calib loop --train REC... [--holdout REC...]
-// --out DIR` (jobs/include/calib/jobs/loop.h, docs/loop.md).
+// --out DIR` (jobs/include/calib/discovery/loop.h, docs/loop.md).
 
 #include <CLI/CLI.hpp>
 

@@ -27,15 +27,52 @@ std::string KnownNames(const std::vector<ParameterSpec>& specs) {
 
 }  // namespace
 
+std::string ToString(ParameterScale scale) {
+  return scale == ParameterScale::kLog ? "log" : "linear";
+}
+
+ParameterScale ParameterScaleFromString(const std::string& name) {
+  if (name == "linear") return ParameterScale::kLinear;
+  if (name == "log") return ParameterScale::kLog;
+  throw std::invalid_argument("scale '" + name + "' is unknown; expected linear or log");
+}
+
+double SearchScales::Positive(double value, double fallback) {
+  return std::isfinite(value) && value > 0.0 ? value : fallback;
+}
+
+double SearchScales::Reference(const std::string& name, double fallback) const {
+  const auto it = reference.find(name);
+  return it != reference.end() ? Positive(it->second, fallback) : fallback;
+}
+
+SearchBox ParameterSpec::SearchBoxFor(const SearchScales& scales) const {
+  if (!search_box) throw std::logic_error("parameter '" + name + "' has no search box");
+  return search_box(scales);
+}
+
+double ParameterSpec::NeutralIn(const SearchBox& box) const {
+  if (box.fixed) return *box.fixed;
+  return neutral ? neutral(box) : box.lower;
+}
+
 const std::vector<ParameterSpec>& BaseModelParameterSpecs() {
   static const std::vector<ParameterSpec> specs = {
-      {"k_D", "force*px", "distance spring stiffness (edge lengths)", 0.0, kInf, false},
-      {"k_d", "force*px*s", "edge damping (Teschner)", 0.0, kInf, false},
-      {"k_A", "force*px", "area spring stiffness (signed triangle areas)", 0.0, kInf, false},
-      {"k_phi", "force*px/rad^2", "angle spring stiffness (corner angles)", 0.0, kInf, false},
-      {"mass", "force*s^2/px", "mass of each node", 0.0, kInf, true},
+      // With the first-order integrator only stiffness / mass ratios
+      // matter, so the mass is fixed and the stiffnesses are searched on
+      // wide log scales (effects move the best stiffnesses).
+      {"k_D", "force*px", "distance spring stiffness (edge lengths)", 0.0, kInf, false,
+       [](const SearchScales& s) { return SearchBox::Log(10, 1e5 * s.stiffness_reach); }, nullptr},
+      {"k_d", "force*px*s", "edge damping (Teschner)", 0.0, kInf, false,
+       [](const SearchScales& s) { return SearchBox::Log(1e-3, 100 * s.stiffness_reach); }, nullptr},
+      {"k_A", "force*px", "area spring stiffness (signed triangle areas)", 0.0, kInf, false,
+       [](const SearchScales& s) { return SearchBox::Log(0.1, 1e5 * s.stiffness_reach); }, nullptr},
+      {"k_phi", "force*px/rad^2", "angle spring stiffness (corner angles)", 0.0, kInf, false,
+       [](const SearchScales& s) { return SearchBox::Log(0.01, 1e4 * s.stiffness_reach); }, nullptr},
+      {"mass", "force*s^2/px", "mass of each node", 0.0, kInf, true,
+       [](const SearchScales&) { return SearchBox::Fixed(kCalibrationMass); }, nullptr},
       {"tau", "1", "share of the push spread evenly over all nodes (translation)", 0.0, 1.0,
-       false},
+       false, [](const SearchScales&) { return SearchBox::Linear(0, 0.5); }, nullptr},
   };
   return specs;
 }

@@ -1,7 +1,7 @@
 #include "calib/evaluator/evaluation.h"
 
 #include "calib/evaluator/contour.h"
-#include "calib/evaluator/residual.h"
+#include "calib/evaluator/mask_geometry.h"
 
 #include <Eigen/QR>
 

@@ -1,5 +1,6 @@
-// The job spec's types, the search space and the canonical JSON
-// (job_spec.h); reading and validating a spec is in job_spec_parse.cpp.
+// The calibration request's search space (calibration_request.h), the job
+// spec's small types and canonical JSON (job_spec.h); reading and
+// validating a spec is in job_spec_parse.cpp.
 
 #include "calib/jobs/job_spec.h"
 
@@ -34,16 +35,6 @@ const ModelCatalog& DefaultModelCatalog() {
   return catalog;
 }
 
-std::string ToString(ParameterScale scale) {
-  return scale == ParameterScale::kLog ? "log" : "linear";
-}
-
-ParameterScale ParameterScaleFromString(const std::string& name) {
-  if (name == "linear") return ParameterScale::kLinear;
-  if (name == "log") return ParameterScale::kLog;
-  throw std::invalid_argument("scale '" + name + "' is unknown; expected linear or log");
-}
-
 std::string ToString(FailureMode mode) {
   switch (mode) {
     case FailureMode::kPenalty: return "penalty";
@@ -60,7 +51,7 @@ FailureMode FailureModeFromString(const std::string& name) {
   throw std::invalid_argument("failure mode '" + name + "' is unknown; expected penalty, retry or abort");
 }
 
-std::vector<std::string> JobSpec::SearchedNames() const {
+std::vector<std::string> CalibrationRequest::SearchedNames() const {
   std::vector<std::string> names;
   for (const auto& p : parameters) {
     if (p.searched()) names.push_back(p.name);
@@ -133,9 +124,9 @@ std::vector<double> SearchSpace::ToUnit(const ParameterValues& values) const {
   return u;
 }
 
-search::CheckedOptimizer MakeJobOptimizer(const JobSpec& spec) {
-  return search::MakeOptimizer(spec.optimizer.name, spec.optimizer.settings,
-                               SearchSpace(spec).UnitBounds(), spec.seed);
+search::CheckedOptimizer MakeRequestOptimizer(const CalibrationRequest& request) {
+  return search::MakeOptimizer(request.optimizer.name, request.optimizer.settings,
+                               SearchSpace(request).UnitBounds(), request.seed);
 }
 
 // --------------------------------------------------------------- ToJson

@@ -245,10 +245,6 @@ std::vector<ParameterSetting> ReadParameters(MapReader& top, const std::vector<P
   return out;
 }
 
-bool TakesMaxEvals(const std::string& name) {
-  return name == "grid" || name == "random" || name == "annealing" || name == "cmaes";
-}
-
 }  // namespace
 
 JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
@@ -321,16 +317,15 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
     }
     o.Finish();
     std::string filled;
-    const std::string budget_key = TakesMaxEvals(spec.optimizer.name) ? "max_evals"
-                                   : spec.optimizer.name.rfind("nlopt:", 0) == 0 ? "maxeval"
-                                                                                : "";
+    const std::string budget_key = search::BudgetSetting(spec.optimizer.name);
     if (!budget_key.empty() && !spec.optimizer.settings.contains(budget_key)) {
-      spec.optimizer.settings[budget_key] = spec.budget.evaluations;
       filled = fmt::format(" ({} = {} filled in from budget.evaluations)", budget_key,
                            spec.budget.evaluations);
     }
+    spec.optimizer.settings =
+        search::WithBudget(spec.optimizer.name, std::move(spec.optimizer.settings), spec.budget.evaluations);
     try {
-      (void)MakeJobOptimizer(spec);
+      (void)MakeRequestOptimizer(spec);
     } catch (const std::exception& e) {
       throw JobSpecError(fmt::format("{}: optimizer.settings = {}{}: {}", spec.source,
                                      spec.optimizer.settings.dump(), filled, e.what()));

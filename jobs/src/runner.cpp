@@ -116,16 +116,16 @@ void UpdateBest(std::optional<EvaluationRecord>& best, const EvaluationRecord& r
 
 class Run {
  public:
-  Run(const JobSpec& spec, ResultStore& store, int64_t job, BatchEvaluator& evaluator,
+  Run(const CalibrationRequest& request, ResultStore& store, int64_t job, BatchEvaluator& evaluator,
       const RunControl& control, RunObserver* observer)
-      : spec_(spec),
+      : spec_(request),
         store_(store),
         job_(job),
         evaluator_(evaluator),
         control_(control),
         observer_(observer ? observer : &silent_),
-        space_(spec),
-        optimizer_(MakeJobOptimizer(spec)),
+        space_(request),
+        optimizer_(MakeRequestOptimizer(request)),
         start_(Clock::now()),
         last_checkpoint_time_(start_) {}
 
@@ -399,7 +399,7 @@ class Run {
     return p;
   }
 
-  const JobSpec& spec_;
+  const CalibrationRequest& spec_;
   ResultStore& store_;
   const int64_t job_;
   BatchEvaluator& evaluator_;
@@ -427,12 +427,12 @@ class Run {
 
 }  // namespace
 
-RunSummary RunCalibration(const JobSpec& spec, ResultStore& store, int64_t job,
+RunSummary RunCalibration(const CalibrationRequest& request, ResultStore& store, int64_t job,
                           BatchEvaluator& evaluator, const RunControl& control,
                           RunObserver* observer) {
   std::string error;
   if (!control.IsValid(&error)) throw std::invalid_argument(error);
-  return Run(spec, store, job, evaluator, control, observer).Go();
+  return Run(request, store, job, evaluator, control, observer).Go();
 }
 
 }  // namespace calib

@@ -1,5 +1,7 @@
 #include "calib/search/factory.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -42,6 +44,45 @@ CheckedOptimizer MakeOptimizer(std::string_view name_view, const nlohmann::json&
                                             name, fmt::join(OptimizerNames(), ", ")));
   }
   return CheckedOptimizer(std::move(plugin), bounds);
+}
+
+namespace {
+
+bool IsNlopt(const std::string& name) { return name.rfind("nlopt:", 0) == 0; }
+
+}  // namespace
+
+std::string BudgetSetting(std::string_view name_view) {
+  const std::string name(name_view);
+  if (name == "grid" || name == "random" || name == "annealing" || name == "cmaes") {
+    return "max_evals";
+  }
+  return IsNlopt(name) ? "maxeval" : "";
+}
+
+nlohmann::json WithBudget(std::string_view name, nlohmann::json settings, int64_t evaluations) {
+  if (settings.is_null()) settings = nlohmann::json::object();
+  const std::string key = BudgetSetting(name);
+  if (!key.empty() && settings.is_object() && !settings.contains(key)) settings[key] = evaluations;
+  return settings;
+}
+
+nlohmann::json StartSettings(std::string_view name_view, int dimension, const std::vector<double>* x0,
+                             double step, int64_t evaluations) {
+  const std::string name(name_view);
+  nlohmann::json settings = nlohmann::json::object();
+  if (name == "cmaes") {
+    // Generations of 4 + 3 ln n candidates (the CMA-ES default), at least
+    // 8 so that two threads and more stay busy (never more than the
+    // budget).
+    const int64_t population = std::max(8, 4 + static_cast<int>(3.0 * std::log(dimension)));
+    settings["population"] = std::max<int64_t>(2, std::min(population, evaluations));
+    settings["initial_sigma"] = step;
+    if (x0 != nullptr) settings["x0"] = *x0;
+  } else if (IsNlopt(name) && x0 != nullptr) {
+    settings["x0"] = *x0;
+  }
+  return settings;
 }
 
 }  // namespace calib::search

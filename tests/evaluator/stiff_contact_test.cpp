@@ -15,7 +15,7 @@
 // slide round them and turn.
 
 #include "calib/evaluator/evaluation.h"
-#include "calib/jobs/loop.h"
+#include "calib/discovery/loop.h"
 
 #include <gtest/gtest.h>
 

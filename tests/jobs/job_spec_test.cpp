@@ -327,7 +327,12 @@ TEST(JobSpec, OtherRulesAreNamed) {
 
 TEST(JobSpec, EffectsAddTheirParameters) {
   ModelCatalog catalog = DefaultModelCatalog();
-  catalog.effects["test_effect"] = {{"yield", "1", "plastic yield strain", 0.0, 1.0, false}};
+  ParameterSpec yield;
+  yield.name = "yield";
+  yield.unit = "1";
+  yield.description = "plastic yield strain";
+  yield.upper = 1.0;
+  catalog.effects["test_effect"] = {yield};
   const fs::path dir = MakeJobFolder("job_spec_effects");
   YAML::Node root = YAML::Load(kValidSpec);
   root["model"]["effects"].push_back("test_effect");
@@ -415,7 +420,7 @@ TEST(SearchSpace, MapsTheUnitBoxToParametersAndBack) {
 TEST(SearchSpace, TheJobOptimiserSearchesTheUnitBox) {
   const fs::path dir = MakeJobFolder("search_space_optimizer");
   const JobSpec spec = ParseJobSpec(std::string(kValidSpec), "job.yaml", dir);
-  search::CheckedOptimizer opt = MakeJobOptimizer(spec);
+  search::CheckedOptimizer opt = MakeRequestOptimizer(spec);
   EXPECT_EQ(opt.name(), "cmaes");
   EXPECT_EQ(opt.dimension(), 4);
   const std::vector<search::Candidate> batch = opt.Ask(100);

@@ -10,6 +10,19 @@
 #include "effect_factories.h"
 
 namespace calib {
+
+// The effects' constructors, one per file of this folder. A new effect is
+// its file, a declaration here and a row of kEntries.
+namespace effects {
+std::unique_ptr<EffectTerm> MakeInertiaEffect();
+std::unique_ptr<EffectTerm> MakeTableFrictionEffect();
+std::unique_ptr<EffectTerm> MakePlasticityEffect();
+std::unique_ptr<EffectTerm> MakeUnevenStiffnessEffect();
+std::unique_ptr<EffectTerm> MakeStrainStiffeningEffect();
+std::unique_ptr<EffectTerm> MakeViscoelasticEffect();
+std::unique_ptr<EffectTerm> MakePushRelaxationEffect();
+}  // namespace effects
+
 namespace {
 
 using Factory = std::unique_ptr<EffectTerm> (*)();

@@ -16,6 +16,7 @@
 // hanging object, gravity lies in the image plane; for a top view of a table
 // the strength is 0 (or a tilt of the table). Its energy is -m g . x.
 
+#include <cmath>
 #include <numbers>
 
 #include "calib/core/effect_kernels.h"
@@ -34,12 +35,21 @@ class InertiaEffect final : public EffectTerm {
         {
             {"inertia_damping_per_s", "1/s",
              "inertia: velocity decay rate of the second-order step (air and table drag)", 0.0,
-             kUnbounded, false},
+             kUnbounded, false,
+             [](const SearchScales& s) { return SearchBox::Log(0.1, 2.0 * SearchScales::Positive(s.fps, 30.0)); },
+             [](const SearchBox& box) { return box.upper; }},  // overdamped: closest to first order
             {"gravity_px_s2", "px/s^2", "inertia: strength of gravity in the image plane", 0.0,
-             kUnbounded, false},
+             kUnbounded, false,
+             [](const SearchScales& s) {
+               // 9.81 m/s^2 in pixels; an unknown scale is taken as 0.25 mm/px
+               // (the box reaches twice that, so any scale down to 0.125 mm/px fits).
+               return SearchBox::Linear(0.0, 2.0 * (9810.0 / SearchScales::Positive(s.mm_per_px, 0.25)));
+             }, nullptr},
             {"gravity_angle_deg", "deg",
              "inertia: direction of gravity in the image (0: +x right, 90: +y down)", -180.0, 180.0,
-             false},
+             false,
+             [](const SearchScales&) { return SearchBox::Linear(-180.0, 180.0); },
+             [](const SearchBox&) { return 90.0; }},  // down the image (irrelevant at g = 0)
         },
         true};
     return kInfo;

@@ -24,6 +24,7 @@
 // original; a corner whose plastic rest angle would leave [0.01, pi - 0.01]
 // keeps its old one.
 
+#include <cmath>
 #include <numbers>
 
 #include "calib/core/effect_kernels.h"
@@ -45,10 +46,17 @@ class PlasticityEffect final : public EffectTerm {
             {"plastic_yield_strain", "1",
              "plasticity: strain (edge, area; corner angle in rad) above which the rest shape "
              "flows",
-             0.0, 0.9, true},
+             0.0, 0.9, true,
+             [](const SearchScales&) { return SearchBox::Log(0.005, 0.5); },
+             [](const SearchBox& box) {
+               // Where the effect's strength is 0, it starts in the middle of its
+               // (log) box, where the search can reach any value.
+               return std::sqrt(box.lower * box.upper);
+             }},
             {"plastic_rate_per_s", "1/s",
              "plasticity: rate at which the rest shape flows towards the yield surface", 0.0,
-             kUnbounded, false},
+             kUnbounded, false,
+             [](const SearchScales&) { return SearchBox::Log(0.05, 50.0); }, nullptr},
         },
         true};
     return kInfo;

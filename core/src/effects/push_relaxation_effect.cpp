@@ -37,7 +37,11 @@ class PushRelaxationEffect final : public EffectTerm {
         {
             {"push_friction_force", "force",
              "push_relaxation: static friction of the whole body against the push", 0.0, kUnbounded,
-             false},
+             false,
+             [](const SearchScales& s) {
+               const double force = SearchScales::Positive(s.peak_force, 1.0);
+               return SearchBox::Log(1e-3 * force, 2.0 * force);
+             }, nullptr},
         },
         false};
     return kInfo;

@@ -25,7 +25,11 @@ class StrainStiffeningEffect final : public EffectTerm {
         {
             {"stiffening_k3", "force*px",
              "strain_stiffening: coefficient of the quartic term on the edge strain", 0.0,
-             kUnbounded, false},
+             kUnbounded, false,
+             [](const SearchScales& s) {
+               const double k_d = s.Reference("k_D", 100.0);
+               return SearchBox::Log(1e-2 * k_d, 1e4 * k_d);
+             }, nullptr},
         },
         true};
     return kInfo;

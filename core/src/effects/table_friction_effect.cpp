@@ -33,7 +33,15 @@ class TableFrictionEffect final : public EffectTerm {
             {"friction_force", "force",
              "table_friction: Coulomb limit of the whole body (mu x weight), shared evenly by "
              "the nodes",
-             0.0, kUnbounded, false},
+             0.0, kUnbounded, false,
+             [](const SearchScales& s) {
+               // Friction competes with the model's drag, not with the sensor's
+               // reading: on the bundled pushes 2 x the peak reading (~3) holds a
+               // node back by 1e-4 px a substep where the finger moves it 0.1 px.
+               const double force = SearchScales::Positive(s.peak_force, 1.0);
+               const double drag = SearchScales::Positive(s.drag_force, force);
+               return SearchBox::Log(1e-3 * drag, 2.0 * drag);
+             }, nullptr},
         },
         false};
     return kInfo;

@@ -17,6 +17,7 @@
 // shape (rest_stiffness): the implicit step holds it in its matrix, so a
 // stiff side is as stable as the base model.
 
+#include <cmath>
 #include <numbers>
 
 #include "calib/core/effect_kernels.h"
@@ -34,10 +35,13 @@ class UnevenStiffnessEffect final : public EffectTerm {
         {
             {"uneven_gradient", "1",
              "uneven_stiffness: stiffness factors range from 1 - g to 1 + g across the rest shape",
-             0.0, 0.95, false},
+             0.0, 0.95, false,
+             [](const SearchScales&) { return SearchBox::Linear(0.0, 0.9); }, nullptr},
             {"uneven_angle_deg", "deg",
              "uneven_stiffness: direction in which stiffness grows (0: +x right, 90: +y down)",
-             -180.0, 180.0, false},
+             -180.0, 180.0, false,
+             [](const SearchScales&) { return SearchBox::Linear(-180.0, 180.0); },
+             [](const SearchBox&) { return 0.0; }},  // irrelevant at gradient 0
         },
         true};
     return kInfo;

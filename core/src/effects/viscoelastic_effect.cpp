@@ -18,6 +18,9 @@
 // kept beside the rest lengths (1 / D_v updated with D_v), so an edge costs
 // one square root and one division.
 
+#include <algorithm>
+#include <cmath>
+
 #include "calib/core/effect_kernels.h"
 #include "effect_factories.h"
 
@@ -33,9 +36,16 @@ class ViscoelasticEffect final : public EffectTerm {
         "flow towards the current lengths, so the body relaxes and recovers slowly",
         {
             {"visco_share", "1", "viscoelastic: share of k_D in the relaxing branch", 0.0, 0.95,
-             false},
+             false,
+             [](const SearchScales&) { return SearchBox::Linear(0.0, 0.9); }, nullptr},
             {"visco_time_s", "s", "viscoelastic: relaxation time constant of the branch", 0.0,
-             kUnbounded, true},
+             kUnbounded, true,
+             [](const SearchScales& s) {
+               const double fps = SearchScales::Positive(s.fps, 30.0);
+               const double duration = SearchScales::Positive(s.duration_s, 1.0);
+               return SearchBox::Log(1.0 / fps, std::max(2.0 * duration, 10.0 / fps));
+             },
+             [](const SearchBox& box) { return std::sqrt(box.lower * box.upper); }},  // irrelevant at share 0
         },
         true};
     return kInfo;

@@ -4,7 +4,9 @@
 // is a map from those names to values.
 
 #include <filesystem>
+#include <functional>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -17,7 +19,60 @@ class ParameterError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// What a parameter means and which values it may take.
+/// How a searched parameter's box maps to the optimiser's unit interval:
+/// evenly (linear) or evenly in its logarithm (log; the box then lies in
+/// (0, inf)).
+enum class ParameterScale { kLinear, kLog };
+std::string ToString(ParameterScale scale);  ///< "linear" / "log"
+/// Throws std::invalid_argument naming the value.
+ParameterScale ParameterScaleFromString(const std::string& name);
+
+/// What the recordings of a calibration show that sizes its search boxes
+/// (SearchBox below). With several training recordings they combine as the
+/// fields say: the largest force and drag, the longest duration, and the
+/// frame rate and pixel scale of the first (the boxes reach far enough for
+/// the others' to fit).
+struct SearchScales {
+  double peak_force = 0.0;  ///< largest |force| of the training tracks; 0: no sensor
+  double fps = 30.0;        ///< frame rate of the first training recording
+  double duration_s = 1.0;  ///< longest training recording
+  double mm_per_px = 0.0;   ///< of the first training recording; 0: unknown
+  /// The model's own force scale: the first-order drag of the whole mesh
+  /// moving at the fastest obstacle's speed, nodes x mass x speed (largest
+  /// over the training recordings). The model's forces are not in the
+  /// sensor's unit (only stiffness / mass ratios are calibrated), so forces
+  /// that compete with the model's motion are sized on this. 0: no obstacle
+  /// moves.
+  double drag_force = 0.0;
+  /// The stiffness boxes reach this many times higher: 100 with the
+  /// implicit step, which is stable there (the quasi-static regime of a
+  /// pushed sponge); 1 with an explicit step.
+  double stiffness_reach = 1.0;
+  /// The previous fit's values, when a calibration continues one (an
+  /// effect's box may scale with a base value, e.g. k_D); empty otherwise.
+  std::map<std::string, double> reference;
+
+  /// `value` when it is finite and > 0, else `fallback`.
+  static double Positive(double value, double fallback);
+  /// Positive(reference[name], fallback); `fallback` without that entry.
+  double Reference(const std::string& name, double fallback) const;
+};
+
+/// Where a calibration searches one parameter by default: within [lower,
+/// upper] on `scale`, or held at `fixed`.
+struct SearchBox {
+  double lower = 0.0;
+  double upper = 0.0;
+  ParameterScale scale = ParameterScale::kLinear;
+  std::optional<double> fixed;
+
+  static SearchBox Linear(double lower, double upper) { return {lower, upper, ParameterScale::kLinear, {}}; }
+  static SearchBox Log(double lower, double upper) { return {lower, upper, ParameterScale::kLog, {}}; }
+  static SearchBox Fixed(double value) { return {value, value, ParameterScale::kLinear, value}; }
+};
+
+/// What a parameter means, which values it may take, and how a calibration
+/// searches it.
 struct ParameterSpec {
   std::string name;         ///< key in parameter files, e.g. "k_D"
   std::string unit;         ///< e.g. "force*px"
@@ -25,10 +80,28 @@ struct ParameterSpec {
   double lower = 0.0;       ///< smallest allowed value
   double upper = 0.0;       ///< largest allowed value (may be +inf)
   bool lower_open = false;  ///< lower bound excluded (e.g. mass > 0)
+  /// The box a calibration searches by default, sized on what the
+  /// recordings show (calib loop's calibrations). Every base and effect
+  /// parameter has one.
+  std::function<SearchBox(const SearchScales&)> search_box;
+  /// An effect's parameter: its value that leaves the model (nearly) as it
+  /// was without the effect, given the box searched (the warm start of a
+  /// new effect). Null: the box's lower end.
+  std::function<double(const SearchBox&)> neutral;
+
+  /// search_box(scales); throws std::logic_error naming the parameter when
+  /// it has none.
+  SearchBox SearchBoxFor(const SearchScales& scales) const;
+  /// The neutral value in `box` (its fixed value when fixed).
+  double NeutralIn(const SearchBox& box) const;
 };
 
 /// Parameter values by name (ordered, so iteration is deterministic).
 using ParameterValues = std::map<std::string, double>;
+
+/// The node mass m a calibration holds fixed (its search box): with the
+/// first-order integrator only stiffness / mass ratios matter.
+inline constexpr double kCalibrationMass = 0.2;
 
 /// The base model's parameters: k_D, k_d, k_A, k_phi, mass, tau.
 const std::vector<ParameterSpec>& BaseModelParameterSpecs();

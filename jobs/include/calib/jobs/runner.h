@@ -34,7 +34,7 @@
 // is lost or done twice after it was recorded.
 
 #include "calib/jobs/batch_evaluator.h"
-#include "calib/jobs/job_spec.h"
+#include "calib/jobs/calibration_request.h"
 #include "calib/results/store.h"
 
 #include <cstdint>
@@ -109,12 +109,13 @@ struct RunSummary {
   std::string BriefReport() const;
 };
 
-/// Runs (or continues) job `job` of `store` whose spec is `spec`. Sets the
-/// job's status (running, then finished / stopped / aborted) and stop
-/// reason. Throws for errors (StoreError, a checkpoint that does not fit the
-/// spec, a reused evaluation whose x differs); the caller marks the job
-/// failed.
-RunSummary RunCalibration(const JobSpec& spec, ResultStore& store, int64_t job,
+/// Runs (or continues) job `job` of `store`: the search `request` asks for,
+/// over the objective `evaluator` evaluates (a job spec is a request, as
+/// are the loop's stage calibrations). Sets the job's status (running, then
+/// finished / stopped / aborted) and stop reason. Throws for errors
+/// (StoreError, a checkpoint that does not fit the request, a reused
+/// evaluation whose x differs); the caller marks the job failed.
+RunSummary RunCalibration(const CalibrationRequest& request, ResultStore& store, int64_t job,
                           BatchEvaluator& evaluator, const RunControl& control,
                           RunObserver* observer = nullptr);
 

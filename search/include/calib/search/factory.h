@@ -26,4 +26,25 @@ CheckedOptimizer MakeOptimizer(std::string_view name, const nlohmann::json& sett
 // Every name MakeOptimizer accepts.
 std::vector<std::string> OptimizerNames();
 
+// What the rest of the program needs to know of an optimiser beyond
+// MakeOptimizer, kept here so that a new optimiser touches search/ only.
+
+// The setting of optimiser `name` that caps its own evaluations
+// ("max_evals": grid, random, annealing, cmaes; "maxeval": nlopt:*), or ""
+// where it has none (genetic: population x generations).
+std::string BudgetSetting(std::string_view name);
+
+// `settings` (an object, or null for none) with BudgetSetting(name) set to
+// `evaluations` where the settings leave it out.
+nlohmann::json WithBudget(std::string_view name, nlohmann::json settings, int64_t evaluations);
+
+// Settings that start a search of `dimension` unit-box coordinates at `x0`
+// (null: the optimiser's own start) with an initial step of `step` (unit
+// box) and a budget of `evaluations`, for the optimisers that take a start:
+// cmaes (x0, initial_sigma, and generations of max(8, 4 + 3 ln n)
+// candidates, never more than the budget, so that two threads and more stay
+// busy) and nlopt:* (x0). Others: an empty object (they start as they do).
+nlohmann::json StartSettings(std::string_view name, int dimension, const std::vector<double>* x0,
+                             double step, int64_t evaluations);
+
 }  // namespace calib::search

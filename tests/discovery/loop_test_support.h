@@ -4,7 +4,7 @@
 // (mapped to the catalogue's names; read only to check the loop's answer),
 // and a small-budget loop run.
 
-#include "calib/jobs/loop.h"
+#include "calib/discovery/loop.h"
 #include "support/test_support.h"
 
 #include <nlohmann/json.hpp>

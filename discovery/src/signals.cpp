@@ -1,7 +1,7 @@
 // Signal helpers of the residual analysis: oscillation (autocorrelation by
 // cv::dft), exponential decay fit, slope and correlation.
 
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/signals.h"
 
 #include <opencv2/core.hpp>
 

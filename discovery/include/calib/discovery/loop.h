@@ -7,8 +7,11 @@
 // report.html, a before / after table). Documented in docs/loop.md.
 //
 // Each calibration is a job of the results store DIR/store.sqlite (the
-// runner of runner.h, OpenMP threads, in process), named after its model
-// ("base", "base+viscoelastic", ...). Everything the loop decides depends
+// runner of runner.h, given a typed CalibrationRequest), named after its
+// model ("stage1-base", "stage2-base.viscoelastic", ...). Calibrations and
+// the re-scoring of parameter sets on the held-out recordings go through a
+// BatchEvaluator (OpenMP threads unless LoopOptions::make_evaluator says
+// otherwise). Everything the loop decides depends
 // only on the recordings, the options and the seed: the same inputs give the
 // same report numbers at any thread count.
 //
@@ -18,12 +21,14 @@
 
 #include "calib/core/parameters.h"
 #include "calib/core/simulator.h"
+#include "calib/discovery/hypotheses.h"
+#include "calib/discovery/keep_criterion.h"
+#include "calib/discovery/loop_report.h"
+#include "calib/discovery/residual.h"
+#include "calib/discovery/stage_calibration.h"
 #include "calib/evaluator/evaluation.h"
-#include "calib/evaluator/hypotheses.h"
-#include "calib/evaluator/residual.h"
-#include "calib/jobs/job_spec.h"
+#include "calib/jobs/batch_evaluator.h"
 #include "calib/jobs/objective.h"
-#include "calib/results/loop_report.h"
 #include "calib/results/store.h"
 
 #include <cstdint>
@@ -85,74 +90,16 @@ struct LoopOptions {
   int overlays_per_recording = 2;
   bool write_html = true;
   std::string command;  ///< the command line, for the report
+  /// Makes the batch evaluator of each calibration and of each re-scoring
+  /// on the held-out recordings (an objective over those recordings).
+  /// Null: OpenMP threads (`threads`). The history and every decision are
+  /// the same for any evaluator (batch_evaluator.h).
+  std::function<std::unique_ptr<BatchEvaluator>(const Objective& objective, int threads)>
+      make_evaluator;
 
   /// False with a message naming the option and the rule.
   bool IsValid(std::string* error) const;
 };
-
-/// What one calibration of the loop searches: the parameter settings (a
-/// box, or fixed) for `effects` on top of the base model. The boxes of the
-/// effects' parameters scale with what the recordings show (peak force,
-/// frame rate, duration, mm per pixel) and with the previous best base
-/// values (`reference`: k_D for the stiffening coefficient).
-struct LoopScales {
-  double peak_force = 0.0;       ///< largest |force| of the training tracks; 0: no sensor
-  double fps = 30.0;             ///< of the first training recording
-  double duration_s = 1.0;       ///< longest training recording
-  double mm_per_px = 0.0;        ///< 0: unknown
-  /// The model's own force scale: the first-order drag of the whole mesh
-  /// moving at the fastest obstacle's speed, nodes x mass x speed (largest
-  /// over the training recordings). The model's forces are not in the
-  /// sensor's unit (only stiffness / mass ratios are calibrated), so
-  /// table friction is sized on this. 0: no obstacle moves.
-  double drag_force = 0.0;
-  /// The stiffness boxes reach 100x higher with the implicit step, which is
-  /// stable there (the quasi-static regime of a pushed sponge).
-  IntegratorKind integrator = IntegratorKind::kFirstOrder;
-};
-/// LoopScales::drag_force of one recording: the mesh's nodes x `mass` x
-/// the fastest obstacle's speed between two frames (px/s); 0 without a
-/// moving obstacle.
-double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass);
-
-std::vector<ParameterSetting> LoopParameterSettings(const std::vector<std::string>& effects,
-                                                    const LoopScales& scales,
-                                                    const ParameterValues& reference);
-
-/// Where independent search `restart` (>= 1) of a calibration from scratch
-/// starts, in unit-box coordinates: each coordinate drawn from [0.1, 0.9]
-/// by a generator seeded with (`seed`, `restart`), so that a restart is
-/// the same at every thread count and after a resume. Restart 0 starts
-/// at the centre (0.5).
-std::vector<double> RestartStart(int dimension, uint64_t seed, int restart);
-
-/// The value of each effect parameter that leaves the model (nearly) as it
-/// was without the effect; the warm start of a new effect.
-double NeutralValue(const ParameterSetting& setting);
-
-/// Segmentation noise of a recording: per frame, the object pixels that
-/// differ from both neighbouring frames while those agree (one-frame
-/// flicker, which no motion smoother than the frame rate makes). Returns the
-/// mean over frames 1..n-2 (0 with fewer than 3 frames).
-double SegmentationNoisePx(const std::vector<BitMask>& object_masks);
-
-/// The fall of the held-out mean IoU that an XOR margin of `margin_px`
-/// allows: the margin over the object pixels of the held-out recordings
-/// (summed over their frames). A rise of the XOR sum by the margin, spread
-/// over the frames, lowers each frame's IoU by at most its share over the
-/// object's pixels; an IoU fall the XOR margin calls insignificant is no
-/// fall (docs/loop.md, the criterion). 0 without object pixels.
-double IouTolerance(double margin_px, const std::vector<const std::vector<BitMask>*>& held_out_masks);
-
-/// The parameter sets of a calibration as good as its best on the training
-/// recordings: the successful `evaluations` (of one or more jobs of the same
-/// model) whose score is within `tolerance` of the lowest, distinct, best
-/// first. With more than `limit` of them, `limit` spread evenly over their
-/// ranks (the best and the last always among them), so that a fit that
-/// converged keeps its spread along flat directions. Deterministic: ties
-/// keep the order of `evaluations`.
-std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationRecord>& evaluations,
-                                                   double tolerance, int limit);
 
 /// Progress lines for people (stage started, calibrated, decided); called
 /// on the loop's thread. Presentation only.

@@ -2,7 +2,7 @@
 // rest-shape regions, centroid and orientation, phases, oscillation,
 // persistence after release, JSON round trip and determinism.
 
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/residual.h"
 
 #include "calib/evaluator/rasterizer.h"
 #include "support/test_support.h"

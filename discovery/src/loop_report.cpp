@@ -1,6 +1,6 @@
 // report.json of the closed loop (loop_report.h).
 
-#include "calib/results/loop_report.h"
+#include "calib/discovery/loop_report.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>

@@ -10,7 +10,7 @@
 // weighted noisy-or, 1 - prod(1 - w_i s_i), where any one signature suffices,
 // or as a product where all are needed.
 
-#include "calib/evaluator/hypotheses.h"
+#include "calib/discovery/hypotheses.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -75,7 +75,16 @@ struct Persistence {
   double release_weight = 0.0;
 };
 
-Hypothesis TraceInertia(const ResidualAnalysis& a, double significance) {
+// What every signature sees besides the analysis: the residual's
+// significance, and the release evidence that plasticity's signature
+// measures and the others weigh against.
+struct TraceContext {
+  double significance = 0.0;
+  Persistence release;
+};
+
+Hypothesis TraceInertia(const ResidualAnalysis& a, const TraceContext& context) {
+  const double significance = context.significance;
   Builder b("inertia", a.recording);
   const OscillationSummary& o = a.oscillation;
   const MotionSummary& m = a.motion;
@@ -157,8 +166,9 @@ Hypothesis TraceInertia(const ResidualAnalysis& a, double significance) {
   return b.h;
 }
 
-Hypothesis TraceTableFriction(const ResidualAnalysis& a, double significance,
-                              const Persistence& persistence) {
+Hypothesis TraceTableFriction(const ResidualAnalysis& a, const TraceContext& context) {
+  const double significance = context.significance;
+  const Persistence& persistence = context.release;
   Builder b("table_friction", a.recording);
   const PushSummary& p = a.push;
   b.h.applicability = p.has_push ? 1.0 : 0.0;
@@ -214,7 +224,8 @@ Hypothesis TraceTableFriction(const ResidualAnalysis& a, double significance,
   return b.h;
 }
 
-Hypothesis TracePushRelaxation(const ResidualAnalysis& a, double significance) {
+Hypothesis TracePushRelaxation(const ResidualAnalysis& a, const TraceContext& context) {
+  const double significance = context.significance;
   Builder b("push_relaxation", a.recording);
   const PushSummary& p = a.push;
   b.h.applicability = p.has_push && p.stopped_frames >= 3 ? 1.0 : 0.0;
@@ -250,6 +261,8 @@ Hypothesis TracePushRelaxation(const ResidualAnalysis& a, double significance) {
   return b.h;
 }
 
+// The plasticity signature; `persistence` receives the release evidence
+// (TraceContext::release).
 Hypothesis TracePlasticity(const ResidualAnalysis& a, double significance, Persistence* persistence) {
   Builder b("plasticity", a.recording);
   const PersistenceSummary& ps = a.persistence;
@@ -290,7 +303,13 @@ Hypothesis TracePlasticity(const ResidualAnalysis& a, double significance, Persi
   return b.h;
 }
 
-Hypothesis TraceViscoelastic(const ResidualAnalysis& a, double significance) {
+Hypothesis TracePlasticityInContext(const ResidualAnalysis& a, const TraceContext& context) {
+  Persistence unused;
+  return TracePlasticity(a, context.significance, &unused);
+}
+
+Hypothesis TraceViscoelastic(const ResidualAnalysis& a, const TraceContext& context) {
+  const double significance = context.significance;
   Builder b("viscoelastic", a.recording);
   const PersistenceSummary& ps = a.persistence;
   const PushSummary& p = a.push;
@@ -342,8 +361,9 @@ Hypothesis TraceViscoelastic(const ResidualAnalysis& a, double significance) {
   return b.h;
 }
 
-Hypothesis TraceUnevenStiffness(const ResidualAnalysis& a, double significance,
-                                double persistent_support) {
+Hypothesis TraceUnevenStiffness(const ResidualAnalysis& a, const TraceContext& context) {
+  const double significance = context.significance;
+  const double persistent_support = context.release.persistent;
   Builder b("uneven_stiffness", a.recording);
   const RegionSummary& r = a.regions;
   b.h.applicability = a.push.has_push ? 1.0 : 0.6;
@@ -388,8 +408,9 @@ Hypothesis TraceUnevenStiffness(const ResidualAnalysis& a, double significance,
   return b.h;
 }
 
-Hypothesis TraceStrainStiffening(const ResidualAnalysis& a, double significance,
-                                 double persistent_support) {
+Hypothesis TraceStrainStiffening(const ResidualAnalysis& a, const TraceContext& context) {
+  const double significance = context.significance;
+  const double persistent_support = context.release.persistent;
   Builder b("strain_stiffening", a.recording);
   const StrainSummary& s = a.strain;
   b.h.applicability = s.num_frames >= 6 ? 1.0 : 0.0;
@@ -452,6 +473,24 @@ Hypothesis TraceStrainStiffening(const ResidualAnalysis& a, double significance,
   return b.h;
 }
 
+// The residual signatures, one per effect of core's EffectTermCatalogue(),
+// in its order (which breaks ties of confidence). A new effect's signature
+// is a Trace function above and a row here.
+using TraceFunction = Hypothesis (*)(const ResidualAnalysis&, const TraceContext&);
+struct Signature {
+  const char* effect;
+  TraceFunction trace;
+};
+constexpr Signature kSignatures[] = {
+    {"inertia", &TraceInertia},
+    {"table_friction", &TraceTableFriction},
+    {"plasticity", &TracePlasticityInContext},
+    {"uneven_stiffness", &TraceUnevenStiffness},
+    {"strain_stiffening", &TraceStrainStiffening},
+    {"viscoelastic", &TraceViscoelastic},
+    {"push_relaxation", &TracePushRelaxation},
+};
+
 bool Ranked(const Hypothesis& x, const Hypothesis& y, const std::vector<std::string>& catalogue) {
   if (x.confidence != y.confidence) return x.confidence > y.confidence;
   return std::find(catalogue.begin(), catalogue.end(), x.effect) <
@@ -467,24 +506,22 @@ json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 }  // namespace
 
 const std::vector<std::string>& TracedEffects() {
-  static const std::vector<std::string> names = {
-      "inertia",           "table_friction", "plasticity",     "uneven_stiffness",
-      "strain_stiffening", "viscoelastic",   "push_relaxation"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> out;
+    for (const Signature& signature : kSignatures) out.emplace_back(signature.effect);
+    return out;
+  }();
   return names;
 }
 
 std::vector<Hypothesis> TraceHypotheses(const ResidualAnalysis& a,
                                         const std::vector<std::string>& already_in_model) {
   const double significance = Ramp(std::max(a.residual_thickness_px, a.p90_thickness_px), 0.8, 2.5);
-  Persistence persistence;
-  Hypothesis plasticity = TracePlasticity(a, significance, &persistence);
-  std::vector<Hypothesis> all = {TraceInertia(a, significance),
-                                 TraceTableFriction(a, significance, persistence),
-                                 std::move(plasticity)};
-  all.push_back(TraceUnevenStiffness(a, significance, persistence.persistent));
-  all.push_back(TraceStrainStiffening(a, significance, persistence.persistent));
-  all.push_back(TraceViscoelastic(a, significance));
-  all.push_back(TracePushRelaxation(a, significance));
+  TraceContext context;
+  context.significance = significance;
+  (void)TracePlasticity(a, significance, &context.release);
+  std::vector<Hypothesis> all;
+  for (const Signature& signature : kSignatures) all.push_back(signature.trace(a, context));
   for (Hypothesis& h : all) {
     h.evidence.insert(h.evidence.begin(),
                       Evidence{"residual_thickness", a.p90_thickness_px, significance,

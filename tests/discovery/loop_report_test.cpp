@@ -1,8 +1,8 @@
 // The loop report: report.json round trip and content, report.html with its
 // gnuplot SVG plots (or a clear notice without gnuplot), determinism.
 
-#include "calib/results/loop_report.h"
-#include "calib/results/report_html.h"
+#include "calib/discovery/loop_report.h"
+#include "calib/discovery/report_html.h"
 
 #include "calib/evaluator/rasterizer.h"
 #include "support/test_support.h"

@@ -33,7 +33,10 @@
 #include "calib/core/mesh.h"
 #include "calib/core/scene.h"
 #include "calib/core/simulator.h"
+#include "calib/discovery/load_phases.h"
+#include "calib/discovery/signals.h"
 #include "calib/evaluator/bit_mask.h"
+#include "calib/evaluator/mask_geometry.h"
 #include "calib/evaluator/scoring.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -49,141 +52,6 @@ namespace calib {
 
 struct PreparedRecording;
 struct EvaluationResult;
-
-// ===========================================================================
-// Load phases.
-
-/// What the pusher does to the object in a frame.
-///   kFree:       the recording has no push at all (no force sensor and no
-///                moving obstacle touching the object): free motion.
-///   kBeforeLoad: before the first loaded frame.
-///   kLoading:    loaded and the pusher moves towards the object (or, with a
-///                static pusher, the force rises).
-///   kHold:       loaded, pusher still and force steady.
-///   kUnloading:  loaded and the pusher moves away (or the force falls).
-///   kReleased:   not loaded any more after having been loaded.
-enum class LoadPhase { kFree, kBeforeLoad, kLoading, kHold, kUnloading, kReleased };
-inline constexpr int kNumLoadPhases = 6;
-
-std::string ToString(LoadPhase phase);  ///< "free", "before_load", "loading", "hold", ...
-/// Inverse of ToString; throws std::invalid_argument naming the text.
-LoadPhase LoadPhaseFromString(const std::string& text);
-/// kLoading, kHold or kUnloading.
-bool IsLoaded(LoadPhase phase);
-
-/// The per-frame signals phase detection reads. Every vector is empty or
-/// holds one entry per frame.
-struct LoadTrack {
-  int num_frames = 0;  ///< at least the longest vector's size
-  double fps = 30.0;
-  /// |force| on the object by the force obstacle, newtons; empty: no sensor.
-  std::vector<double> force_n;
-  /// 1 where the pusher touches the object; used when force_n is empty.
-  std::vector<uint8_t> contact;
-  /// Centre of the pusher (the force obstacle, else the obstacle that moves
-  /// most), pixels; empty: no pusher.
-  std::vector<Vec2> pusher_centre;
-  /// A point of the object (its centroid) per frame: "towards the object".
-  std::vector<Vec2> object_centre;
-};
-
-/// Phase detection options (part of ResidualOptions).
-struct PhaseOptions {
-  /// Loaded when |force| exceeds this share of the largest |force| ...
-  double load_on_fraction = 0.10;
-  /// ... and stays loaded until it falls below this share (hysteresis).
-  double load_off_fraction = 0.05;
-  /// The pusher moves when its speed exceeds this share of its largest
-  /// speed while loaded (and 0.01 px/frame).
-  double moving_fraction = 0.10;
-  /// With a pusher that never moves: the force rises (falls) when it changes
-  /// by more than this share of its largest value per second.
-  double force_rate_fraction_per_s = 0.05;
-
-  bool IsValid(std::string* error) const;
-};
-
-/// One phase per frame (see LoadPhase). A recording whose force never
-/// exceeds 1e-9 N and with no contact is all kFree.
-std::vector<LoadPhase> DetectLoadPhases(const LoadTrack& track, const PhaseOptions& options);
-
-// ===========================================================================
-// Signal helpers (used by the analysis; public for tests and reports).
-
-/// A periodic component of a sampled signal.
-struct Oscillation {
-  bool found = false;
-  double period_frames = 0.0;  ///< sub-frame (parabolic peak interpolation)
-  double period_s = 0.0;
-  /// Autocorrelation at the period, corrected for the overlap (N / (N - lag)),
-  /// in [0, 1]: 1 for a pure sinusoid.
-  double strength = 0.0;
-  /// sqrt(2) x RMS of the linearly detrended signal (a sinusoid's amplitude).
-  double amplitude = 0.0;
-  /// Exponential decay rate of the per-period RMS envelope, 1/s (> 0:
-  /// decaying, < 0: growing); 0 with fewer than 3 whole periods.
-  double decay_per_s = 0.0;
-  double cycles = 0.0;  ///< signal length / period
-};
-
-struct OscillationOptions {
-  double min_period_frames = 3.0;
-  /// Periods longer than N / min_cycles are not searched (below ~2.5 a
-  /// single step or bump passes for a period).
-  double min_cycles = 2.5;
-  double min_strength = 0.2;
-};
-
-/// The dominant period of `signal` (sampled at `fps`): the first
-/// autocorrelation peak after its first zero crossing, the autocorrelation
-/// computed with cv::dft on the detrended, zero-padded signal. NaN samples
-/// are replaced by linear interpolation. found = false for fewer than 8
-/// samples, no zero crossing or a peak weaker than min_strength.
-Oscillation DetectOscillation(std::span<const double> signal, double fps,
-                              const OscillationOptions& options = {});
-
-/// y(t) = floor + amplitude exp(-t / tau) fitted to samples y[i] at
-/// t = i dt (least squares; tau by golden-section search on log tau between
-/// dt / 2 and 20 x the span, floor and amplitude linear).
-struct ExponentialFit {
-  bool ok = false;  ///< false with fewer than 4 samples
-  double floor = 0.0;
-  double amplitude = 0.0;
-  double tau_s = 0.0;
-  double r2 = 0.0;  ///< 1 - SSE / SST (1 for a constant signal fitted exactly)
-};
-ExponentialFit FitExponentialDecay(std::span<const double> y, double dt_s);
-
-/// Least-squares slope of y[i] against t = i dt (units of y per second); 0
-/// with fewer than 2 finite samples (NaN samples are skipped).
-double LinearSlope(std::span<const double> y, double dt_s);
-
-/// Pearson correlation of x and y over the pairs where both are finite; 0
-/// when either is constant or fewer than 3 pairs.
-double Correlation(std::span<const double> x, std::span<const double> y);
-
-// ===========================================================================
-// Mask geometry.
-
-/// Area, centroid and principal-axis orientation of a mask's pixels.
-struct MaskMoments {
-  int64_t area_px = 0;
-  Vec2 centroid_px{NAN, NAN};  ///< frame pixels (pixel centres)
-  /// Orientation of the major axis, in (-pi/2, pi/2]; NaN when empty.
-  double angle_rad = NAN;
-  /// 1 - minor / major eigenvalue of the covariance (0: isotropic, the angle
-  /// meaningless; -> 1: elongated).
-  double anisotropy = 0.0;
-};
-MaskMoments ComputeMoments(const BitMask& mask);
-
-/// |a XOR (b shifted by (dx, dy))|: the XOR after moving b's content dx
-/// pixels right and dy down, over a's extent (b's pixels shifted outside it
-/// are not counted). a and b must have the same shape.
-int64_t CountXorShifted(const BitMask& a, const BitMask& b, int dx, int dy);
-
-/// a - b wrapped into (-pi/2, pi/2] (axis angles are defined modulo pi).
-double AxisAngleDifference(double a_rad, double b_rad);
 
 // ===========================================================================
 // The analysis.

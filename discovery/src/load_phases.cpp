@@ -1,6 +1,6 @@
 // Load phases of a recording from its force track and the pusher's motion.
 
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/load_phases.h"
 
 #include <fmt/format.h>
 

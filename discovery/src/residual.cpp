@@ -2,7 +2,7 @@
 // object moments, the push) and the per-frame work (split, bands, mapping to
 // the rest shape). The summaries over time are in residual_summary.cpp.
 
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/residual.h"
 
 #include "calib/evaluator/evaluation.h"
 #include "calib/evaluator/rasterizer.h"

@@ -13,7 +13,7 @@
 
 #include "calib/core/simulator.h"
 #include "calib/evaluator/evaluation.h"
-#include "calib/results/loop_report.h"
+#include "calib/discovery/loop_report.h"
 
 #include <opencv2/videoio.hpp>
 

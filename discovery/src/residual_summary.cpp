@@ -1,7 +1,7 @@
 // The residual analysis over time: phases, motion, oscillation,
 // persistence, the push and deformation (ResidualAnalyzer::Finish).
 
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/residual.h"
 
 #include <fmt/format.h>
 

@@ -10,8 +10,8 @@
 
 #include "calib/core/parameters.h"
 #include "calib/evaluator/evaluation.h"
-#include "calib/evaluator/hypotheses.h"
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/hypotheses.h"
+#include "calib/discovery/residual.h"
 
 #include <nlohmann/json_fwd.hpp>
 

@@ -1,6 +1,6 @@
 // Overlay frames for the loop report (report_overlays.h).
 
-#include "calib/results/report_overlays.h"
+#include "calib/discovery/report_overlays.h"
 
 #include "calib/evaluator/overlay.h"
 

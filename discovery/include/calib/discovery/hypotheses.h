@@ -18,7 +18,7 @@
 // it carries over to recordings of other sizes, frame rates and rigs; no
 // threshold refers to a particular recording.
 
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/residual.h"
 
 #include <nlohmann/json_fwd.hpp>
 

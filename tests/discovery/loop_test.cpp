@@ -5,7 +5,7 @@
 
 #include "loop_test_support.h"
 
-#include "calib/results/loop_report.h"
+#include "calib/discovery/loop_report.h"
 #include "calib/results/store.h"
 
 #include <gtest/gtest.h>
@@ -319,12 +319,13 @@ TEST(Loop, EquallyGoodFitsAreTheDistinctOnesWithinTheTolerance) {
 }
 
 TEST(Loop, SearchBoxesCoverEveryEffectAndNeutralValuesLieInThem) {
-  LoopScales scales;
+  SearchScales scales;
   scales.peak_force = 2.0;
   scales.fps = 240.0;
   scales.duration_s = 1.5;
+  scales.reference = {{"k_D", 300.0}};
   for (const EffectInfo& info : EffectTermCatalogue()) {
-    const auto settings = LoopParameterSettings({info.name}, scales, {{"k_D", 300.0}});
+    const auto settings = StageParameterSettings({info.name}, scales);
     for (const ParameterSpec& p : info.parameters) {
       const auto it = std::find_if(settings.begin(), settings.end(),
                                    [&](const ParameterSetting& s) { return s.name == p.name; });
@@ -337,7 +338,7 @@ TEST(Loop, SearchBoxesCoverEveryEffectAndNeutralValuesLieInThem) {
       EXPECT_LE(v, it->upper) << p.name;
     }
   }
-  EXPECT_THROW(LoopParameterSettings({"levitation"}, scales, {}), std::invalid_argument);
+  EXPECT_THROW(StageParameterSettings({"levitation"}, scales), std::invalid_argument);
 }
 
 TEST(Loop, TableFrictionIsSizedOnTheModelsDragNotOnTheSensor) {
@@ -351,12 +352,12 @@ TEST(Loop, TableFrictionIsSizedOnTheModelsDragNotOnTheSensor) {
   EXPECT_DOUBLE_EQ(ModelDragForce(mesh, scene, 0.2), 20 * 0.2 * 90.0);
   EXPECT_EQ(ModelDragForce(mesh, testing::StillScene(4), 0.2), 0.0);  // nothing moves
 
-  LoopScales scales;
+  SearchScales scales;
   scales.peak_force = 2.0;
   scales.drag_force = 1800.0;
   auto expect_box = [&](const std::string& effect, const std::string& name, double lower,
                         double upper) {
-    for (const ParameterSetting& s : LoopParameterSettings({effect}, scales, {})) {
+    for (const ParameterSetting& s : StageParameterSettings({effect}, scales)) {
       if (s.name != name) continue;
       EXPECT_DOUBLE_EQ(s.lower, lower) << name;
       EXPECT_DOUBLE_EQ(s.upper, upper) << name;
@@ -372,10 +373,10 @@ TEST(Loop, TableFrictionIsSizedOnTheModelsDragNotOnTheSensor) {
 }
 
 TEST(Loop, TheImplicitStepWidensTheStiffnessBoxesOnly) {
-  LoopScales scales;
-  const auto first_order = LoopParameterSettings({}, scales, {});
-  scales.integrator = IntegratorKind::kImplicitFirstOrder;
-  const auto implicit = LoopParameterSettings({}, scales, {});
+  SearchScales scales;
+  const auto first_order = StageParameterSettings({}, scales);
+  scales.stiffness_reach = 100.0;  // TrainingScales with the implicit step
+  const auto implicit = StageParameterSettings({}, scales);
   ASSERT_EQ(first_order.size(), implicit.size());
   for (size_t k = 0; k < implicit.size(); ++k) {
     const std::string& name = implicit[k].name;

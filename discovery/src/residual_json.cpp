@@ -1,7 +1,7 @@
 // JSON of a ResidualAnalysis. Each struct lists its fields once (Visit);
 // the same list writes and reads, so the two cannot drift apart.
 
-#include "calib/evaluator/residual.h"
+#include "calib/discovery/residual.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>

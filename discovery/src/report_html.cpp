@@ -1,6 +1,6 @@
 // report.html (report_html.h): tables in HTML, plots by gnuplot as SVG.
 
-#include "calib/results/report_html.h"
+#include "calib/discovery/report_html.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>

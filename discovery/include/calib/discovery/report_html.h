@@ -7,7 +7,7 @@
 // files the report names (linked, or embedded as base64).
 
 #include "calib/results/gnuplot.h"
-#include "calib/results/loop_report.h"
+#include "calib/discovery/loop_report.h"
 
 #include <filesystem>
 #include <string>

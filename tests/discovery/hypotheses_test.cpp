@@ -4,7 +4,7 @@
 // model are left out; merging weighs recordings by applicability; the
 // result is deterministic; JSON round-trips and a bad document names the key.
 
-#include "calib/evaluator/hypotheses.h"
+#include "calib/discovery/hypotheses.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

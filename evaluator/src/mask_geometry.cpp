@@ -1,6 +1,6 @@
-// Mask geometry of the residual analysis: moments, shifted XOR, axis angles.
+// Mask geometry (mask_geometry.h): moments, shifted XOR, axis angles.
 
-#include "calib/evaluator/residual.h"
+#include "calib/evaluator/mask_geometry.h"
 
 #include <bit>
 #include <cmath>

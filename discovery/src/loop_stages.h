@@ -1,0 +1,151 @@
+#pragma once
+// The closed loop's parts (loop.h), shared by its source files:
+//   LoopRecording    a recording and its model-independent facts, once;
+//   Fit              one calibrated model and how it does everywhere;
+//   StageCalibrator  calibrates a model (stage_calibration.cpp) and measures
+//                    it: residuals, equally good fits, sensitivity;
+//   KeepCriterion    judges whether an effect earns its place
+//                    (keep_criterion.cpp).
+// loop.cpp orchestrates them.
+
+#include "calib/discovery/loop.h"
+#include "calib/discovery/loop_report.h"
+#include "calib/discovery/residual.h"
+#include "calib/discovery/stage_calibration.h"
+#include "calib/evaluator/evaluation.h"
+#include "calib/results/store.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace calib::loop_detail {
+
+struct LoopRecording {
+  std::string name;
+  std::filesystem::path path;
+  bool train = true;
+  std::shared_ptr<const PreparedRecording> prepared;
+  double noise_px = 0.0;  ///< SegmentationNoisePx
+};
+
+// One calibrated model and how it does everywhere.
+struct Fit {
+  std::vector<std::string> effects;
+  ParameterValues values;
+  std::vector<EvaluationResult> results;     ///< per recording (loop order)
+  std::vector<ResidualAnalysis> residuals;   ///< per recording
+  int evaluations = 0;
+  double seconds = 0.0;
+  std::vector<int64_t> jobs;  ///< the store's jobs of its calibration
+  std::vector<double> restart_training_xor;  ///< from scratch: each search's best
+  EquallyGoodFits equally_good;  ///< MeasureEquallyGood; fits == 0 until then
+  /// MeasureSensitivity: how far the held-out XOR sum moves when every
+  /// value moves by kSensitivityNudge (px; 0 until measured).
+  double holdout_sensitivity_px = 0.0;
+
+  int64_t XorSum(const std::vector<LoopRecording>& recs, bool train) const;
+  bool AllOk() const;
+};
+
+/// "base+viscoelastic" for logs and reports.
+std::string StageName(const std::vector<std::string>& effects);
+
+/// The held-out score of one parameter set on one recording.
+struct HeldOutScore {
+  bool ok = false;
+  int64_t xor_sum = 0;
+  double mean_iou = 0.0;
+};
+
+/// Judges an effect: does recalibrating with it lower the held-out error by
+/// more than noise, extra parameters and the objective's resolution explain?
+class KeepCriterion {
+ public:
+  KeepCriterion(const LoopOptions& options, const std::vector<LoopRecording>& recs,
+                const SearchScales& scales)
+      : o_(options), recs_(recs), scales_(scales) {}
+
+  struct Verdict {
+    bool pass = false;
+    double gain = 0.0;       ///< drop of the deciding error (px)
+    double margin = 0.0;     ///< what it had to exceed
+    std::string criterion;
+    std::string reason;
+  };
+  /// `candidate` (the previous model plus an effect of `extra_parameters`
+  /// searched parameters) against `previous`, or against `ablation` (the
+  /// previous model with the candidate's values) where that is better on
+  /// the training recordings.
+  Verdict Judge(const Fit& previous, const Fit* ablation, const Fit& candidate,
+                int extra_parameters) const;
+
+  /// What a drop of the training (`train`) or held-out XOR sum `before` must
+  /// exceed to count: max(noise_factor x (1 + extra parameters) x the
+  /// recordings' segmentation noise, min_relative_gain x before).
+  double Margin(bool train, int extra_parameters, double before) const;
+  /// The recordings' segmentation noise summed over their frames.
+  double NoiseBudget(bool train) const;
+  bool HasHoldout() const;
+
+ private:
+  std::vector<const std::vector<BitMask>*> HeldOutMasks() const;
+
+  const LoopOptions& o_;
+  const std::vector<LoopRecording>& recs_;
+  const SearchScales& scales_;
+};
+
+/// Calibrates models on the training recordings (jobs of the loop's store)
+/// and measures them on every recording.
+class StageCalibrator {
+ public:
+  StageCalibrator(const LoopOptions& options, const std::vector<LoopRecording>& recs,
+                  const SearchScales& scales, const KeepCriterion& criterion, ResultStore& store,
+                  int threads, const LoopLog& log)
+      : o_(options), recs_(recs), scales_(scales), criterion_(criterion), store_(store),
+        threads_(threads), log_(log) {}
+
+  /// Calibration `index` of the base model plus `effects`: from scratch
+  /// (independent searches) or warm-started from the fit `warm` of the
+  /// model without the last effect. Measured on every recording.
+  Fit Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm);
+  /// The fit's results and residuals on every recording.
+  void Measure(Fit* fit) const;
+  /// The spread of the held-out error over the fit's equally good fits.
+  void MeasureEquallyGood(Fit* fit) const;
+  /// How far a 0.1 % nudge of the fit's values moves its held-out error.
+  void MeasureSensitivity(Fit* fit) const;
+
+ private:
+  void Log(const std::string& line) const {
+    if (log_) log_(line);
+  }
+  // The job's best values and training score; empty values and +inf
+  // where no candidate simulated every training recording.
+  std::pair<ParameterValues, double> RunJob(const std::string& name,
+                                            const std::vector<std::string>& effects,
+                                            const std::vector<ParameterSetting>& settings,
+                                            const std::vector<double>* x0, double sigma,
+                                            int64_t budget, uint64_t seed, Fit* fit);
+  double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const;
+  std::vector<int> HeldOutIndices() const;
+  /// Every parameter set of `sets` on every held-out recording, through the
+  /// batch evaluator: result i is set i / H on held-out recording i % H (H
+  /// held-out recordings). A set the model rejects is a failed result.
+  std::vector<HeldOutScore> ScoreOnHeldOut(const std::vector<ParameterValues>& sets,
+                                           const std::vector<std::string>& effects) const;
+  std::unique_ptr<BatchEvaluator> MakeEvaluator(const Objective& objective) const;
+
+  const LoopOptions& o_;
+  const std::vector<LoopRecording>& recs_;
+  const SearchScales& scales_;
+  const KeepCriterion& criterion_;
+  ResultStore& store_;
+  int threads_ = 1;
+  const LoopLog& log_;
+};
+
+}  // namespace calib::loop_detail

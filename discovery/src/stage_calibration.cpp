@@ -1,0 +1,456 @@
+// Stage calibrations of the closed loop (stage_calibration.h) and the
+// StageCalibrator that runs and measures them (loop_stages.h).
+
+#include "calib/discovery/stage_calibration.h"
+
+#include "calib/core/effects.h"
+#include "calib/core/model_definition.h"
+#include "calib/jobs/batch_evaluator.h"
+#include "calib/jobs/job_spec.h"
+#include "calib/jobs/runner.h"
+#include "calib/search/factory.h"
+#include "loop_stages.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace calib {
+
+namespace fs = std::filesystem;
+
+double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass) {
+  double speed = 0.0;
+  for (int f = 1; f < scene.num_frames; ++f) {
+    for (int k = 0; k < scene.num_obstacles; ++k) {
+      const double step =
+          (scene.ObstaclesAt(f)[k].centre - scene.ObstaclesAt(f - 1)[k].centre).norm();
+      speed = std::max(speed, step / scene.frame_time_s);
+    }
+  }
+  return mesh.NumNodes() * mass * speed;
+}
+
+SearchScales TrainingScales(const std::vector<std::shared_ptr<const PreparedRecording>>& training,
+                            const SimulationOptions& simulation) {
+  SearchScales scales;
+  bool first = true;
+  for (const auto& prepared : training) {
+    const Recording& rec = prepared->recording;
+    for (const Vec2& f : rec.forces) scales.peak_force = std::max(scales.peak_force, f.norm());
+    scales.drag_force = std::max(scales.drag_force,
+                                 ModelDragForce(prepared->mesh, prepared->scene, kCalibrationMass));
+    scales.duration_s = std::max(scales.duration_s * (first ? 0.0 : 1.0),
+                                 rec.num_frames / std::max(rec.fps, 1e-9));
+    if (first) {
+      scales.fps = rec.fps;
+      scales.mm_per_px = rec.mm_per_px.value_or(0.0);
+    }
+    first = false;
+  }
+  scales.stiffness_reach = simulation.integrator == IntegratorKind::kImplicitFirstOrder ? 100.0 : 1.0;
+  return scales;
+}
+
+std::vector<ParameterSetting> StageParameterSettings(const std::vector<std::string>& effects,
+                                                     const SearchScales& scales) {
+  std::vector<ParameterSetting> out;
+  for (const ParameterSpec& spec : ModelParameterSpecs(ModelDefinition{effects})) {
+    const SearchBox box = spec.SearchBoxFor(scales);
+    ParameterSetting s;
+    s.name = spec.name;
+    if (box.fixed) {
+      s.fixed = box.fixed;
+    } else {
+      s.lower = box.lower;
+      s.upper = box.upper;
+      s.scale = box.scale;
+    }
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+std::vector<double> RestartStart(int dimension, uint64_t seed, int restart) {
+  std::vector<double> x(static_cast<size_t>(std::max(dimension, 0)), 0.5);
+  if (restart <= 0) return x;
+  // SplitMix64 (Steele, Lea & Flood 2014): a fixed sequence on every
+  // platform, unlike the standard library's distributions.
+  uint64_t state = seed * 0x9E3779B97F4A7C15ULL + static_cast<uint64_t>(restart);
+  for (double& u : x) {
+    uint64_t z = (state += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    z ^= z >> 31;
+    u = 0.1 + 0.8 * static_cast<double>(z >> 11) * 0x1.0p-53;
+  }
+  return x;
+}
+
+double NeutralValue(const ParameterSetting& s) {
+  if (s.fixed) return *s.fixed;
+  std::vector<std::string> all;
+  for (const EffectInfo& info : EffectTermCatalogue()) all.push_back(info.name);
+  for (const ParameterSpec& spec : ModelParameterSpecs(ModelDefinition{all})) {
+    if (spec.name == s.name) return spec.NeutralIn(SearchBox{s.lower, s.upper, s.scale, {}});
+  }
+  throw std::invalid_argument(fmt::format("parameter '{}' is no model term's", s.name));
+}
+
+CalibrationRequest StageRequest(const std::string& name, const std::vector<ParameterSetting>& settings,
+                                const std::string& optimizer, const std::vector<double>* x0,
+                                double step, int64_t budget, uint64_t seed) {
+  CalibrationRequest request;
+  request.name = name;
+  request.parameters = settings;
+  const int dimension = SearchSpace(settings).dimension();
+  request.optimizer.name = optimizer;
+  request.optimizer.settings = search::WithBudget(
+      optimizer, search::StartSettings(optimizer, dimension, x0, step, budget), budget);
+  request.budget.evaluations = budget;
+  request.seed = seed;
+  request.checkpoint = {budget, 0.0};
+  return request;
+}
+
+
+// =========================================================================
+// Stage calibrations (loop_stages.h).
+
+namespace loop_detail {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// MeasureSensitivity: nudges of every value by this relative amount, their
+// signs drawn (by RestartStart) from the loop's seed plus this offset, a
+// stream apart from the restarts'.
+constexpr int kSensitivityNudges = 4;
+constexpr double kSensitivityNudge = 1e-3;
+constexpr uint64_t kSensitivitySeedOffset = 7919;
+
+std::string JobName(int index, const std::vector<std::string>& effects) {
+  std::string name = fmt::format("stage{}-base", index);
+  for (const std::string& e : effects) name += "." + e;
+  return name;
+}
+
+}  // namespace
+
+std::string StageName(const std::vector<std::string>& effects) {
+  return ModelDefinition{effects}.ToString();
+}
+
+// One calibration job of the store: `settings` searched by the loop's
+// optimiser (from x0 with initial_sigma when given), `budget` evaluations.
+// Returns the best record's values and score.
+std::pair<ParameterValues, double> StageCalibrator::RunJob(const std::string& name,
+                                                const std::vector<std::string>& effects,
+                                                const std::vector<ParameterSetting>& settings,
+                                                const std::vector<double>* x0, double sigma,
+                                                int64_t budget, uint64_t seed, Fit* fit) {
+  // The store keeps the job as a job spec (the request plus the
+  // recordings, the model and where results go), as for `calib run`.
+  JobSpec spec;
+  static_cast<CalibrationRequest&>(spec) =
+      StageRequest(name, settings, o_.optimizer, x0, sigma, budget, seed);
+  spec.source = "loop stage " + name;
+  spec.base_dir = fs::absolute(o_.out_dir);
+  for (const LoopRecording& r : recs_) {
+    (r.train ? spec.train : spec.holdout).push_back(fs::absolute(r.path));
+  }
+  spec.model.effects = effects;
+  spec.model.simulation = o_.simulation;
+  spec.model.preparation = o_.preparation;
+  spec.threads = threads_;
+  spec.results.store = spec.base_dir / "store.sqlite";
+  spec.results.out_dir = spec.base_dir;
+  spec.parameter_specs = ModelParameterSpecs(ModelDefinition{effects});
+
+  std::vector<std::shared_ptr<const PreparedRecording>> train;
+  for (const LoopRecording& r : recs_) {
+    if (r.train) train.push_back(r.prepared);
+  }
+  RecordingObjective objective(train, o_.simulation, ModelDefinition{effects});
+  const std::unique_ptr<BatchEvaluator> evaluator = MakeEvaluator(objective);
+  const int64_t job = store_.CreateJob(spec.name, ToJson(spec));
+  RunControl control;
+  const RunSummary run = RunCalibration(spec.request(), store_, job, *evaluator, control);
+  fit->evaluations += static_cast<int>(run.evaluations);
+  fit->jobs.push_back(job);
+  if (!run.best) {
+    Log(fmt::format("loop: job {} found no candidate that simulates every training recording ({})",
+                    name, run.stop_reason));
+    return {ParameterValues{}, std::numeric_limits<double>::infinity()};
+  }
+  return {run.best->parameters, run.best->score};
+}
+
+double StageCalibrator::TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const {
+  std::vector<std::shared_ptr<const PreparedRecording>> train;
+  for (const LoopRecording& r : recs_) {
+    if (r.train) train.push_back(r.prepared);
+  }
+  const ObjectiveResult result =
+      RecordingObjective(train, o_.simulation, ModelDefinition{effects}).MakeWorker()->Evaluate(values);
+  return result.ok() ? result.score : std::numeric_limits<double>::infinity();
+}
+
+Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm) {
+  const Clock::time_point start = Clock::now();
+  SearchScales scales = scales_;
+  if (warm != nullptr) scales.reference = warm->values;
+  const std::vector<ParameterSetting> settings = StageParameterSettings(effects, scales);
+  const int64_t budget = (effects.empty() || o_.effect_budget == 0) ? o_.budget : o_.effect_budget;
+  const uint64_t seed = o_.seed * 1000 + static_cast<uint64_t>(index);
+  Fit fit;
+  fit.effects = effects;
+  if (warm == nullptr) {
+    // Independent searches; the best on the training recordings is the fit
+    // (the first on ties, so one restart is the plain search).
+    const int dimension = SearchSpace(settings).dimension();
+    double best = std::numeric_limits<double>::infinity();
+    for (int r = 0; r < o_.restarts; ++r) {
+      const std::vector<double> x0 = RestartStart(dimension, seed, r);
+      const std::string name = JobName(index, effects) + (r == 0 ? "" : fmt::format("-restart{}", r));
+      const auto [values, score] = RunJob(name, effects, settings, r == 0 ? nullptr : &x0, 0.3, budget,
+                                          seed + 100000 * static_cast<uint64_t>(r), &fit);
+      fit.restart_training_xor.push_back(score);
+      if (score < best) {
+        best = score;
+        fit.values = values;
+      }
+    }
+    if (fit.values.empty()) {
+      throw std::runtime_error(fmt::format(
+          "loop: calibrating {} found no candidate that simulates every training recording",
+          StageName(effects)));
+    }
+  } else {
+    // Warm start in two phases. (1) The new effect's parameters alone, over
+    // their whole box, the previous model's held at their best: a small
+    // search that sees what the effect can do. (2) Everything together from
+    // there, with a small step: the previous parameters adjust to the effect.
+    // The warm start itself (the effect neutral) and phase 1's best compete
+    // with phase 2's: the best on the training recordings is the result.
+    ParameterValues start_values;
+    std::vector<ParameterSetting> effect_only;
+    for (const ParameterSetting& s : settings) {
+      const auto it = warm->values.find(s.name);
+      if (it != warm->values.end()) {
+        const double v = std::clamp(it->second, s.fixed.value_or(s.lower), s.fixed.value_or(s.upper));
+        start_values[s.name] = v;
+        ParameterSetting fixed;
+        fixed.name = s.name;
+        fixed.fixed = v;
+        effect_only.push_back(std::move(fixed));
+      } else {
+        start_values[s.name] = NeutralValue(s);
+        effect_only.push_back(s);
+      }
+    }
+    // Phase 1 rarely finds much by itself (the previous model's values are
+    // a fit without the effect: a stiffness or a damping there already
+    // imitates part of it), so it gets a quarter of the budget; phase 2,
+    // where those values can move away from their imitation, the rest,
+    // with a step wide enough to leave the previous optimum's basin
+    // (kJointSigma of each unit box).
+    const int64_t budget1 = std::max<int64_t>(2, budget / 4);
+    const int64_t budget2 = std::max<int64_t>(2, budget - budget1);
+    std::vector<double> x1 = SearchSpace(effect_only).ToUnit(start_values);
+    for (double& u : x1) u = std::clamp(u, 0.0, 1.0);
+    const auto [values1, score1] = RunJob(JobName(index, effects) + "-effect", effects, effect_only,
+                                          &x1, 0.3, budget1, seed, &fit);
+    // (A phase that found no candidate simulating every training recording
+    // scores +inf; where none did, the fit is the warm start, which the
+    // criterion rejects if it does not simulate either.)
+    std::vector<double> x2 =
+        SearchSpace(settings).ToUnit(std::isfinite(score1) ? values1 : start_values);
+    for (double& u : x2) u = std::clamp(u, 0.0, 1.0);
+    constexpr double kJointSigma = 0.25;
+    const auto [values2, score2] = RunJob(JobName(index, effects), effects, settings, &x2,
+                                          kJointSigma, budget2, seed + 500, &fit);
+    const double score0 = TrainingScore(effects, start_values);
+    ++fit.evaluations;
+    fit.values = values2;
+    double best = score2;
+    if (score1 < best) {
+      fit.values = values1;
+      best = score1;
+    }
+    if (score0 < best || !std::isfinite(best)) fit.values = start_values;
+  }
+  Measure(&fit);
+  fit.seconds = Since(start);
+  return fit;
+}
+
+void StageCalibrator::Measure(Fit* fit) const {
+  const int n = static_cast<int>(recs_.size());
+  fit->results.assign(n, {});
+  fit->residuals.assign(n, {});
+  const ModelDefinition model{fit->effects};
+  std::vector<std::string> errors(n);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, std::min(threads_, n)))
+  for (int r = 0; r < n; ++r) {
+    try {
+      Evaluator evaluator(*recs_[r].prepared, o_.simulation, model);
+      ResidualAnalyzer analyzer(*recs_[r].prepared);
+      fit->results[r] = evaluator.Evaluate(fit->values, analyzer);
+      fit->residuals[r] = analyzer.Finish();
+      fit->residuals[r].recording = recs_[r].name;
+    } catch (const std::exception& e) {
+      errors[r] = e.what();
+    }
+  }
+  for (int r = 0; r < n; ++r) {
+    if (!errors[r].empty()) {
+      throw std::runtime_error(fmt::format("loop: measuring {} on {}: {}", StageName(fit->effects),
+                                           recs_[r].name, errors[r]));
+    }
+  }
+}
+
+std::vector<int> StageCalibrator::HeldOutIndices() const {
+  std::vector<int> held;
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    if (!recs_[r].train) held.push_back(static_cast<int>(r));
+  }
+  return held;
+}
+
+std::unique_ptr<BatchEvaluator> StageCalibrator::MakeEvaluator(const Objective& objective) const {
+  if (o_.make_evaluator) return o_.make_evaluator(objective, threads_);
+  return std::make_unique<ThreadBatchEvaluator>(objective, threads_);
+}
+
+std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<ParameterValues>& sets,
+                                                          const std::vector<std::string>& effects) const {
+  const std::vector<int> held = HeldOutIndices();
+  std::vector<HeldOutScore> scores(sets.size() * held.size());
+  if (sets.empty()) return scores;
+  std::vector<PendingCandidate> batch(sets.size());
+  for (size_t k = 0; k < sets.size(); ++k) batch[k] = {static_cast<int64_t>(k), sets[k]};
+  const ModelDefinition model{effects};
+  for (size_t h = 0; h < held.size(); ++h) {
+    // One objective per held-out recording: its score is that recording's
+    // XOR sum and its mean IoU that recording's, summed in frame order as
+    // Evaluator::Evaluate sums them.
+    const RecordingObjective objective({recs_[held[h]].prepared}, o_.simulation, model);
+    const std::unique_ptr<BatchEvaluator> evaluator = MakeEvaluator(objective);
+    evaluator->Evaluate(
+        batch, /*max_attempts=*/1, [] { return false; },
+        [&](std::vector<FinishedCandidate>&& done) {
+          for (const FinishedCandidate& c : done) {
+            HeldOutScore& s = scores[static_cast<size_t>(c.id) * held.size() + h];
+            s.ok = c.result.ok();
+            s.xor_sum = std::isfinite(c.result.score) ? static_cast<int64_t>(c.result.score) : 0;
+            s.mean_iou = c.result.iou.mean;
+          }
+        },
+        /*tick_s=*/1.0);
+  }
+  return scores;
+}
+
+// A model's held-out error is a number only as far as it does not hang on
+// digits the calibration cannot resolve: while the implicit step left its
+// contacts to the projections (contacts switching between sticking and
+// sliding), moving every value by 0.1 % moved the held-out XOR sum of
+// push_viscoelastic_offset by up to 12 %; with the contacts in the step it
+// is 0.01-0.3 % on the bundled pushes. The largest move over
+// kSensitivityNudges nudges (each value times 1 +- 0.1 %, signs drawn from
+// the loop's seed) is a floor of the held-out margin; a nudge that fails to
+// simulate makes the whole held-out sum the floor.
+void StageCalibrator::MeasureSensitivity(Fit* fit) const {
+  if (!criterion_.HasHoldout()) return;
+  const std::vector<int> held = HeldOutIndices();
+  std::vector<ParameterValues> nudged(kSensitivityNudges, fit->values);
+  for (int k = 0; k < kSensitivityNudges; ++k) {
+    const std::vector<double> u = RestartStart(static_cast<int>(fit->values.size()),
+                                               o_.seed + kSensitivitySeedOffset, k + 1);  // in [0.1, 0.9]
+    size_t j = 0;
+    for (auto& [name, value] : nudged[k]) value *= 1.0 + (u[j++] < 0.5 ? -1.0 : 1.0) * kSensitivityNudge;
+  }
+  // A value nudged out of its range fails like a simulation.
+  const std::vector<HeldOutScore> results = ScoreOnHeldOut(nudged, fit->effects);
+  const double at_fit = static_cast<double>(fit->XorSum(recs_, false));
+  double worst = 0.0;
+  for (int k = 0; k < kSensitivityNudges; ++k) {
+    double sum = 0.0;
+    bool ok = true;
+    for (size_t h = 0; h < held.size(); ++h) {
+      const HeldOutScore& e = results[k * held.size() + h];
+      ok &= e.ok;
+      sum += static_cast<double>(e.xor_sum);
+    }
+    worst = std::max(worst, ok ? std::abs(sum - at_fit) : at_fit);
+  }
+  fit->holdout_sensitivity_px = worst;
+}
+
+void StageCalibrator::MeasureEquallyGood(Fit* fit) const {
+  if (!criterion_.HasHoldout() || o_.equally_good_fits == 0) return;
+  std::vector<EvaluationRecord> evaluations;
+  for (int64_t job : fit->jobs) {
+    for (EvaluationRecord& e : store_.Evaluations(job)) evaluations.push_back(std::move(e));
+  }
+  // Equally good: worse than the best on the training recordings by no more
+  // than the margin an effect must beat to count as better there (the
+  // training segmentation noise, or the minimum relative gain).
+  const double tolerance = criterion_.Margin(true, 0, static_cast<double>(fit->XorSum(recs_, true)));
+  std::vector<ParameterValues> sets = SelectEquallyGoodFits(evaluations, tolerance, o_.equally_good_fits);
+  // The fit itself is always one of them (a warm start's best may be its
+  // starting point, which no job recorded); Measure scored it already.
+  std::erase(sets, fit->values);
+
+  const std::vector<int> held = HeldOutIndices();
+  const std::vector<HeldOutScore> results = ScoreOnHeldOut(sets, fit->effects);  // failures counted out below
+  EquallyGoodFits g;
+  g.training_tolerance_px = tolerance;
+  std::vector<int64_t> sums;
+  // One fit's held-out results, results_of(h) on the h-th held-out recording.
+  auto add = [&](const auto& results_of) {
+    int64_t xor_sum = 0;
+    double iou = 0.0;
+    for (size_t h = 0; h < held.size(); ++h) {
+      const HeldOutScore e = results_of(h);
+      if (!e.ok) return;  // a fit that fails on held-out data pins nothing down
+      xor_sum += e.xor_sum;
+      iou += e.mean_iou;
+    }
+    iou /= static_cast<double>(held.size());
+    if (g.fits == 0 || xor_sum < g.holdout_xor_min) {
+      g.holdout_xor_min = xor_sum;
+      g.holdout_iou_at_min = iou;
+    }
+    g.holdout_xor_max = g.fits == 0 ? xor_sum : std::max(g.holdout_xor_max, xor_sum);
+    sums.push_back(xor_sum);
+    ++g.fits;
+  };
+  add([&](size_t h) {
+    const EvaluationResult& e = fit->results[held[h]];
+    return HeldOutScore{e.ok(), e.xor_sum, e.mean_iou};
+  });
+  for (size_t k = 0; k < sets.size(); ++k) {
+    add([&](size_t h) { return results[k * held.size() + h]; });
+  }
+  if (!sums.empty()) {
+    auto middle = sums.begin() + static_cast<std::ptrdiff_t>((sums.size() - 1) / 2);
+    std::nth_element(sums.begin(), middle, sums.end());
+    g.holdout_xor_median = *middle;
+  }
+  fit->equally_good = g;
+}
+
+}  // namespace loop_detail
+
+}  // namespace calib
