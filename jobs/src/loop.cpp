@@ -299,6 +299,7 @@ struct LoopRecording {
   bool train = true;
   std::shared_ptr<const PreparedRecording> prepared;
   double noise_px = 0.0;  ///< SegmentationNoisePx
+  std::shared_ptr<const RecordingResidualFacts> residual_facts;  ///< shared by every fit's analysis
 };
 
 // One calibrated model and how it does everywhere.
@@ -453,6 +454,7 @@ void Loop::Prepare() {
     for (int k = 2; names.count(r.name) != 0; ++k) r.name = fmt::format("{}_{}", RecordingName(*r.prepared), k);
     names.insert(r.name);
     r.noise_px = SegmentationNoisePx(r.prepared->object_masks);
+    r.residual_facts = std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(*r.prepared));
     recs_.push_back(std::move(r));
   };
   for (const fs::path& p : o_.train) add(p, true);
@@ -657,7 +659,7 @@ void Loop::Measure(Fit* fit) const {
   for (int r = 0; r < n; ++r) {
     try {
       Evaluator evaluator(*recs_[r].prepared, o_.simulation, model);
-      ResidualAnalyzer analyzer(*recs_[r].prepared);
+      ResidualAnalyzer analyzer(recs_[r].residual_facts);
       fit->results[r] = evaluator.Evaluate(fit->values, analyzer);
       fit->residuals[r] = analyzer.Finish();
       fit->residuals[r].recording = recs_[r].name;
