@@ -151,6 +151,7 @@ void Loop::Prepare() {
     for (int k = 2; names.count(r.name) != 0; ++k) r.name = fmt::format("{}_{}", RecordingName(*r.prepared), k);
     names.insert(r.name);
     r.noise_px = SegmentationNoisePx(r.prepared->object_masks);
+    r.residual_facts = std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(*r.prepared));
     recs_.push_back(std::move(r));
   };
   for (const fs::path& p : o_.train) add(p, true);

@@ -29,6 +29,7 @@ struct LoopRecording {
   bool train = true;
   std::shared_ptr<const PreparedRecording> prepared;
   double noise_px = 0.0;  ///< SegmentationNoisePx
+  std::shared_ptr<const RecordingResidualFacts> residual_facts;  ///< shared by every fit's analysis
 };
 
 // One calibrated model and how it does everywhere.

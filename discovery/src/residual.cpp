@@ -1,5 +1,6 @@
-// The one-pass residual analyser: what is known before the pass (phases,
-// object moments, the push) and the per-frame work (split, bands, mapping to
+// The one-pass residual analyser: what is known before the pass
+// (ComputeResidualFacts: phases, object moments, the push; once per
+// recording) and the per-frame work (split, bands, mapping to
 // the rest shape). The summaries over time are in residual_summary.cpp.
 
 #include "calib/discovery/residual.h"
@@ -13,7 +14,9 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
+#include <utility>
 
 namespace calib {
 namespace {
@@ -99,95 +102,95 @@ bool ResidualOptions::IsValid(std::string* error) const {
   return phases.IsValid(error);
 }
 
-ResidualAnalyzer::ResidualAnalyzer(const PreparedRecording& prepared,
-                                   const ResidualOptions& options)
-    : mesh_(prepared.mesh),
-      scene_(prepared.scene),
-      object_masks_(prepared.object_masks),
-      options_(options) {
-  for (const ObstacleTrack& t : prepared.recording.obstacles) obstacle_names_.push_back(t.name);
-  recording_name_ = prepared.recording.folder.filename().string();
-  if (recording_name_.empty()) {
-    recording_name_ = prepared.recording.folder.parent_path().filename().string();
+RecordingResidualFacts ComputeResidualFacts(const PreparedRecording& prepared,
+                                            const ResidualOptions& options) {
+  std::vector<std::string> obstacle_names;
+  for (const ObstacleTrack& t : prepared.recording.obstacles) obstacle_names.push_back(t.name);
+  std::string recording_name = prepared.recording.folder.filename().string();
+  if (recording_name.empty()) {
+    recording_name = prepared.recording.folder.parent_path().filename().string();
   }
-  Initialise();
+  return ComputeResidualFacts(prepared.mesh, prepared.scene, prepared.object_masks,
+                              std::move(obstacle_names), std::move(recording_name), options);
 }
 
-ResidualAnalyzer::ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene,
-                                   const std::vector<BitMask>& object_masks,
-                                   std::vector<std::string> obstacle_names,
-                                   std::string recording_name, const ResidualOptions& options)
-    : mesh_(rest_mesh),
-      scene_(scene),
-      object_masks_(object_masks),
-      obstacle_names_(std::move(obstacle_names)),
-      recording_name_(std::move(recording_name)),
-      options_(options) {
-  Initialise();
-}
+RecordingResidualFacts ComputeResidualFacts(const Mesh& rest_mesh, const Scene& scene,
+                                            const std::vector<BitMask>& object_masks,
+                                            std::vector<std::string> obstacle_names,
+                                            std::string recording_name,
+                                            const ResidualOptions& options) {
+  RecordingResidualFacts facts;
+  facts.rest_mesh = &rest_mesh;
+  facts.scene = &scene;
+  facts.object_masks = &object_masks;
+  facts.obstacle_names = std::move(obstacle_names);
+  facts.recording_name = std::move(recording_name);
+  facts.options = options;
+  const Mesh& mesh = rest_mesh;
 
-void ResidualAnalyzer::Initialise() {
   std::string error;
-  if (!options_.IsValid(&error)) throw std::invalid_argument(error);
-  const int n = scene_.num_frames;
-  if (n < 1 || static_cast<int>(object_masks_.size()) != n) {
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  const int n = scene.num_frames;
+  if (n < 1 || static_cast<int>(object_masks.size()) != n) {
     throw std::invalid_argument(fmt::format(
-        "ResidualAnalyzer: {} object masks for a scene of {} frames", object_masks_.size(), n));
+        "ResidualAnalyzer: {} object masks for a scene of {} frames", object_masks.size(), n));
   }
   for (int f = 1; f < n; ++f) {
-    if (!object_masks_[f].SameShape(object_masks_[0])) {
+    if (!object_masks[f].SameShape(object_masks[0])) {
       throw std::invalid_argument(
           fmt::format("ResidualAnalyzer: object mask {} differs in shape from mask 0", f));
     }
   }
-  if (obstacle_names_.empty()) {
-    for (int o = 0; o < scene_.num_obstacles; ++o) {
-      obstacle_names_.push_back(fmt::format("obstacle_{}", o));
+  if (facts.obstacle_names.empty()) {
+    for (int o = 0; o < scene.num_obstacles; ++o) {
+      facts.obstacle_names.push_back(fmt::format("obstacle_{}", o));
     }
   }
-  if (static_cast<int>(obstacle_names_.size()) != scene_.num_obstacles) {
+  if (static_cast<int>(facts.obstacle_names.size()) != scene.num_obstacles) {
     throw std::invalid_argument(fmt::format("ResidualAnalyzer: {} obstacle names for {} obstacles",
-                                            obstacle_names_.size(), scene_.num_obstacles));
+                                            facts.obstacle_names.size(), scene.num_obstacles));
   }
-  if (mesh_.NumNodes() < 3 || mesh_.NumTriangles() < 1) {
+  if (mesh.NumNodes() < 3 || mesh.NumTriangles() < 1) {
     throw std::invalid_argument("ResidualAnalyzer: the rest mesh has no triangle");
   }
-  const double fps = 1.0 / scene_.frame_time_s;
+  const double fps = 1.0 / scene.frame_time_s;
 
   // Rest shape: area, centroid, perimeter; its pixels (for areas and the
   // radius of gyration).
   Vec2 weighted = Vec2::Zero();
-  for (int t = 0; t < mesh_.NumTriangles(); ++t) {
-    const auto& tri = mesh_.triangles[t];
-    const double a = mesh_.rest_area_px2[t];
-    rest_area_px_ += a;
-    weighted += a * (mesh_.rest_positions[tri[0]] + mesh_.rest_positions[tri[1]] +
-                     mesh_.rest_positions[tri[2]]) / 3.0;
+  for (int t = 0; t < mesh.NumTriangles(); ++t) {
+    const auto& tri = mesh.triangles[t];
+    const double a = mesh.rest_area_px2[t];
+    facts.rest_area_px += a;
+    weighted += a * (mesh.rest_positions[tri[0]] + mesh.rest_positions[tri[1]] +
+                     mesh.rest_positions[tri[2]]) / 3.0;
   }
-  rest_centroid_ = weighted / rest_area_px_;
-  for (const auto& loop : mesh_.boundary_loops) {
+  const Vec2 rest_centroid = weighted / facts.rest_area_px;
+  facts.rest_centroid_px = rest_centroid;
+  for (const auto& loop : mesh.boundary_loops) {
     for (size_t i = 0; i < loop.size(); ++i) {
-      rest_perimeter_px_ +=
-          (mesh_.rest_positions[loop[(i + 1) % loop.size()]] - mesh_.rest_positions[loop[i]]).norm();
+      facts.rest_perimeter_px +=
+          (mesh.rest_positions[loop[(i + 1) % loop.size()]] - mesh.rest_positions[loop[i]]).norm();
     }
   }
-  BitMask rest_mask(object_masks_[0].width(), object_masks_[0].height(),
-                    object_masks_[0].origin_x(), object_masks_[0].origin_y());
+  BitMask rest_mask(object_masks[0].width(), object_masks[0].height(),
+                    object_masks[0].origin_x(), object_masks[0].origin_y());
   Rasterizer rasterizer;
-  rasterizer.RasterizeTriangles(mesh_, mesh_.rest_positions, rest_mask);
+  rasterizer.RasterizeTriangles(mesh, mesh.rest_positions, rest_mask);
 
   // Object masks: moments, change, deformation.
-  object_moments_.resize(n);
-  object_change_px_.assign(n, 0);
-  object_deformation_.assign(n, 0.0);
-  for (int f = 0; f < n; ++f) object_moments_[f] = ComputeMoments(object_masks_[f]);
-  const double area0 = std::max<double>(1.0, object_moments_[0].area_px);
+  std::vector<MaskMoments>& moments = facts.object_moments;
+  moments.resize(n);
+  facts.object_change_px.assign(n, 0);
+  facts.object_deformation.assign(n, 0.0);
+  for (int f = 0; f < n; ++f) moments[f] = ComputeMoments(object_masks[f]);
+  const double area0 = std::max<double>(1.0, moments[0].area_px);
   for (int f = 0; f < n; ++f) {
-    if (f > 0) object_change_px_[f] = CountXorShifted(object_masks_[f], object_masks_[f - 1], 0, 0);
-    const Vec2 d = object_moments_[f].centroid_px - object_moments_[0].centroid_px;
+    if (f > 0) facts.object_change_px[f] = CountXorShifted(object_masks[f], object_masks[f - 1], 0, 0);
+    const Vec2 d = moments[f].centroid_px - moments[0].centroid_px;
     if (d.allFinite()) {
-      object_deformation_[f] =
-          CountXorShifted(object_masks_[f], object_masks_[0], static_cast<int>(std::lround(d.x())),
+      facts.object_deformation[f] =
+          CountXorShifted(object_masks[f], object_masks[0], static_cast<int>(std::lround(d.x())),
                           static_cast<int>(std::lround(d.y()))) /
           area0;
     }
@@ -195,78 +198,82 @@ void ResidualAnalyzer::Initialise() {
 
   // The pusher: the force obstacle, else the obstacle that travels most
   // (at least 1 px).
-  force_n_.assign(n, 0.0);
-  if (scene_.force_obstacle >= 0 && static_cast<int>(scene_.forces.size()) == n) {
-    for (int f = 0; f < n; ++f) force_n_[f] = scene_.forces[f].norm();
-    pusher_ = scene_.force_obstacle;
+  std::vector<double>& force_n = facts.force_n;
+  int& pusher = facts.pusher;
+  force_n.assign(n, 0.0);
+  if (scene.force_obstacle >= 0 && static_cast<int>(scene.forces.size()) == n) {
+    for (int f = 0; f < n; ++f) force_n[f] = scene.forces[f].norm();
+    pusher = scene.force_obstacle;
   } else {
     double best = 1.0;
-    for (int o = 0; o < scene_.num_obstacles; ++o) {
+    for (int o = 0; o < scene.num_obstacles; ++o) {
       double path = 0.0;
       for (int f = 1; f < n; ++f) {
-        path += (scene_.ObstaclesAt(f)[o].centre - scene_.ObstaclesAt(f - 1)[o].centre).norm();
+        path += (scene.ObstaclesAt(f)[o].centre - scene.ObstaclesAt(f - 1)[o].centre).norm();
       }
       if (path > best) {
         best = path;
-        pusher_ = o;
+        pusher = o;
       }
     }
   }
   LoadTrack track;
   track.num_frames = n;
   track.fps = fps;
-  if (scene_.force_obstacle >= 0) track.force_n = force_n_;
-  if (pusher_ >= 0) {
+  if (scene.force_obstacle >= 0) track.force_n = force_n;
+  if (pusher >= 0) {
     track.pusher_centre.resize(n);
     track.contact.resize(n);
     for (int f = 0; f < n; ++f) {
-      const Disc& d = scene_.ObstaclesAt(f)[pusher_];
+      const Disc& d = scene.ObstaclesAt(f)[pusher];
       track.pusher_centre[f] = d.centre;
       track.contact[f] =
-          Touches(object_masks_[f], d.centre, d.radius_px + options_.contact_margin_px);
+          Touches(object_masks[f], d.centre, d.radius_px + options.contact_margin_px);
     }
     track.object_centre.resize(n);
     for (int f = 0; f < n; ++f) {
-      track.object_centre[f] = object_moments_[f].centroid_px.allFinite()
-                                   ? object_moments_[f].centroid_px
-                                   : rest_centroid_;
+      track.object_centre[f] = moments[f].centroid_px.allFinite()
+                                   ? moments[f].centroid_px
+                                   : rest_centroid;
     }
   }
-  phases_ = DetectLoadPhases(track, options_.phases);
+  facts.phases = DetectLoadPhases(track, options.phases);
+  const std::vector<LoadPhase>& phases = facts.phases;
 
   // The push: peak, axis, contact site, eccentricity.
-  push_ = PushSummary();
-  push_.has_push = std::any_of(phases_.begin(), phases_.end(), IsLoaded) && pusher_ >= 0;
-  if (push_.has_push) {
+  PushSummary& push = facts.push;
+  push = PushSummary();
+  push.has_push = std::any_of(phases.begin(), phases.end(), IsLoaded) && pusher >= 0;
+  if (push.has_push) {
     int peak = -1;
     double best = -std::numeric_limits<double>::infinity();
     for (int f = 0; f < n; ++f) {
-      if (!IsLoaded(phases_[f])) continue;
+      if (!IsLoaded(phases[f])) continue;
       const double score =
-          scene_.force_obstacle >= 0
-              ? force_n_[f]
+          scene.force_obstacle >= 0
+              ? force_n[f]
               : -(track.pusher_centre[f] - track.object_centre[f]).norm();
       if (score > best) {
         best = score;
         peak = f;
       }
     }
-    push_.peak_frame = peak;
-    push_.peak_force_n = force_n_[peak];
-    const Vec2 pusher = scene_.ObstaclesAt(peak)[pusher_].centre;
-    const Vec2 axis = rest_centroid_ - pusher;
-    push_.push_axis = axis.norm() > 1e-9 ? Vec2(axis / axis.norm()) : Vec2(0.0, 1.0);
+    push.peak_frame = peak;
+    push.peak_force_n = force_n[peak];
+    const Vec2 pusher_centre = scene.ObstaclesAt(peak)[pusher].centre;
+    const Vec2 axis = rest_centroid - pusher_centre;
+    push.push_axis = axis.norm() > 1e-9 ? Vec2(axis / axis.norm()) : Vec2(0.0, 1.0);
     // Contact site: the rest boundary point nearest the pusher at the peak.
     double best_d2 = std::numeric_limits<double>::infinity();
-    for (const auto& loop : mesh_.boundary_loops) {
+    for (const auto& loop : mesh.boundary_loops) {
       for (size_t i = 0; i < loop.size(); ++i) {
-        const Vec2& a = mesh_.rest_positions[loop[i]];
-        const Vec2& b = mesh_.rest_positions[loop[(i + 1) % loop.size()]];
+        const Vec2& a = mesh.rest_positions[loop[i]];
+        const Vec2& b = mesh.rest_positions[loop[(i + 1) % loop.size()]];
         double d2 = 0.0;
-        const double t = ProjectOnSegment(pusher, a, b, &d2);
+        const double t = ProjectOnSegment(pusher_centre, a, b, &d2);
         if (d2 < best_d2) {
           best_d2 = d2;
-          push_.contact_site_px = a + t * (b - a);
+          push.contact_site_px = a + t * (b - a);
         }
       }
     }
@@ -274,40 +281,43 @@ void ResidualAnalyzer::Initialise() {
     // loaded).
     double pushed = 0.0;
     for (int f = 1; f < n; ++f) {
-      if (IsLoaded(phases_[f])) {
+      if (IsLoaded(phases[f])) {
         pushed += std::max(0.0, (track.pusher_centre[f] - track.pusher_centre[f - 1])
-                                    .dot(push_.push_axis));
+                                    .dot(push.push_axis));
       }
     }
-    push_.push_distance_px = pushed;
+    push.push_distance_px = pushed;
   }
-  const Vec2 a = push_.push_axis;
-  side_axis_ = Vec2(-a.y(), a.x());
-  side_origin_ = push_.has_push ? push_.contact_site_px : rest_centroid_;
+  const Vec2 a = push.push_axis;
+  const Vec2 side_axis(-a.y(), a.x());
+  const Vec2 side_origin = push.has_push ? push.contact_site_px : rest_centroid;
+  facts.side_axis = side_axis;
+  facts.side_origin_px = side_origin;
   double half_extent = 0.0;
-  for (const Vec2& p : mesh_.rest_positions) {
-    half_extent = std::max(half_extent, std::abs((p - rest_centroid_).dot(side_axis_)));
+  for (const Vec2& p : mesh.rest_positions) {
+    half_extent = std::max(half_extent, std::abs((p - rest_centroid).dot(side_axis)));
   }
-  if (push_.has_push && half_extent > 0.0) {
-    push_.load_eccentricity = std::abs((side_origin_ - rest_centroid_).dot(side_axis_)) / half_extent;
+  if (push.has_push && half_extent > 0.0) {
+    push.load_eccentricity = std::abs((side_origin - rest_centroid).dot(side_axis)) / half_extent;
   }
 
   // Heat map grid over the rest shape's bounding box.
-  Vec2 lo = mesh_.rest_positions[0], hi = lo;
-  for (const Vec2& p : mesh_.rest_positions) {
+  Vec2 lo = mesh.rest_positions[0], hi = lo;
+  for (const Vec2& p : mesh.rest_positions) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
   const Vec2 size = (hi - lo).cwiseMax(Vec2(1.0, 1.0));
-  heat_map_ = RestHeatMap();
-  heat_map_.origin_px = lo;
-  heat_map_.cell_px = std::sqrt(size.x() * size.y() / options_.heat_map_cells);
-  heat_map_.cols = std::max(1, static_cast<int>(std::ceil(size.x() / heat_map_.cell_px)));
-  heat_map_.rows = std::max(1, static_cast<int>(std::ceil(size.y() / heat_map_.cell_px)));
-  const size_t cells = static_cast<size_t>(heat_map_.cols) * heat_map_.rows;
-  for (auto* v : {&heat_map_.area_px, &heat_map_.missed, &heat_map_.extra,
-                  &heat_map_.loaded_missed, &heat_map_.loaded_extra, &heat_map_.released_missed,
-                  &heat_map_.released_extra}) {
+  RestHeatMap& heat_map = facts.heat_map;
+  heat_map = RestHeatMap();
+  heat_map.origin_px = lo;
+  heat_map.cell_px = std::sqrt(size.x() * size.y() / options.heat_map_cells);
+  heat_map.cols = std::max(1, static_cast<int>(std::ceil(size.x() / heat_map.cell_px)));
+  heat_map.rows = std::max(1, static_cast<int>(std::ceil(size.y() / heat_map.cell_px)));
+  const size_t cells = static_cast<size_t>(heat_map.cols) * heat_map.rows;
+  for (auto* v : {&heat_map.area_px, &heat_map.missed, &heat_map.extra,
+                  &heat_map.loaded_missed, &heat_map.loaded_extra, &heat_map.released_missed,
+                  &heat_map.released_extra}) {
     v->assign(cells, 0.0);
   }
 
@@ -320,45 +330,81 @@ void ResidualAnalyzer::Initialise() {
     for (int x = 0; x < rest_mask.width(); ++x) {
       if (!rest_mask.Get(x, y)) continue;
       const Vec2 p(rest_mask.origin_x() + x + 0.5, rest_mask.origin_y() + y + 0.5);
-      gyration2 += (p - rest_centroid_).squaredNorm();
+      gyration2 += (p - rest_centroid).squaredNorm();
       count += 1.0;
     }
   }
-  rest_gyration_px_ = count > 0 ? std::sqrt(gyration2 / count) : 0.0;
-  push_.contact_zone_radius_px = std::max(options_.contact_radius_px, 0.25 * rest_gyration_px_);
-  if (push_.has_push) {
+  facts.rest_radius_of_gyration_px = count > 0 ? std::sqrt(gyration2 / count) : 0.0;
+  push.contact_zone_radius_px =
+      std::max(options.contact_radius_px, 0.25 * facts.rest_radius_of_gyration_px);
+  if (push.has_push) {
     // A dent is about as wide as the pusher.
-    push_.contact_zone_radius_px = std::max(
-        push_.contact_zone_radius_px, 1.5 * scene_.ObstaclesAt(push_.peak_frame)[pusher_].radius_px);
+    push.contact_zone_radius_px = std::max(
+        push.contact_zone_radius_px, 1.5 * scene.ObstaclesAt(push.peak_frame)[pusher].radius_px);
   }
-  regions_ = RegionSummary();
+  RegionSummary& regions = facts.regions;
+  regions = RegionSummary();
   for (int y = 0; y < rest_mask.height(); ++y) {
     for (int x = 0; x < rest_mask.width(); ++x) {
       if (!rest_mask.Get(x, y)) continue;
       const Vec2 p(rest_mask.origin_x() + x + 0.5, rest_mask.origin_y() + y + 0.5);
-      const int cx = std::clamp(static_cast<int>((p.x() - lo.x()) / heat_map_.cell_px), 0,
-                                heat_map_.cols - 1);
-      const int cy = std::clamp(static_cast<int>((p.y() - lo.y()) / heat_map_.cell_px), 0,
-                                heat_map_.rows - 1);
-      heat_map_.area_px[static_cast<size_t>(cy) * heat_map_.cols + cx] += 1.0;
-      const Vec2 d = p - rest_centroid_;
+      const int cx = std::clamp(static_cast<int>((p.x() - lo.x()) / heat_map.cell_px), 0,
+                                heat_map.cols - 1);
+      const int cy = std::clamp(static_cast<int>((p.y() - lo.y()) / heat_map.cell_px), 0,
+                                heat_map.rows - 1);
+      heat_map.area_px[static_cast<size_t>(cy) * heat_map.cols + cx] += 1.0;
+      const Vec2 d = p - rest_centroid;
       const bool near = d.dot(a) < 0.0;
-      regions_.area_px[static_cast<int>(near ? RestRegion::kNear : RestRegion::kFar)] += 1;
-      const bool neg = (p - side_origin_).dot(side_axis_) < 0.0;
-      regions_.area_px[static_cast<int>(neg ? RestRegion::kSideNeg : RestRegion::kSidePos)] += 1;
-      regions_.area_px[static_cast<int>(d.x() < 0 ? RestRegion::kLeft : RestRegion::kRight)] += 1;
-      regions_.area_px[static_cast<int>(d.y() < 0 ? RestRegion::kTop : RestRegion::kBottom)] += 1;
-      if (push_.has_push && (p - push_.contact_site_px).norm() < push_.contact_zone_radius_px) {
-        regions_.area_px[static_cast<int>(RestRegion::kContact)] += 1;
+      regions.area_px[static_cast<int>(near ? RestRegion::kNear : RestRegion::kFar)] += 1;
+      const bool neg = (p - side_origin).dot(side_axis) < 0.0;
+      regions.area_px[static_cast<int>(neg ? RestRegion::kSideNeg : RestRegion::kSidePos)] += 1;
+      regions.area_px[static_cast<int>(d.x() < 0 ? RestRegion::kLeft : RestRegion::kRight)] += 1;
+      regions.area_px[static_cast<int>(d.y() < 0 ? RestRegion::kTop : RestRegion::kBottom)] += 1;
+      if (push.has_push && (p - push.contact_site_px).norm() < push.contact_zone_radius_px) {
+        regions.area_px[static_cast<int>(RestRegion::kContact)] += 1;
       }
-      regions_.area_px[static_cast<int>(RestRegion::kAll)] += 1;
+      regions.area_px[static_cast<int>(RestRegion::kAll)] += 1;
     }
   }
+  return facts;
+}
 
-  frames_.clear();
-  frames_.reserve(n);
-  dipole_sum_ = Vec2::Zero();
-  dipole_weight_ = 0.0;
+namespace {
+
+std::shared_ptr<const RecordingResidualFacts> CheckedFacts(
+    std::shared_ptr<const RecordingResidualFacts> facts) {
+  if (facts == nullptr || facts->rest_mesh == nullptr || facts->scene == nullptr ||
+      facts->object_masks == nullptr) {
+    throw std::invalid_argument(
+        "ResidualAnalyzer: no facts (null, or without rest mesh, scene or object masks)");
+  }
+  return facts;
+}
+
+}  // namespace
+
+ResidualAnalyzer::ResidualAnalyzer(const PreparedRecording& prepared,
+                                   const ResidualOptions& options)
+    : ResidualAnalyzer(
+          std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(prepared, options))) {}
+
+ResidualAnalyzer::ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene,
+                                   const std::vector<BitMask>& object_masks,
+                                   std::vector<std::string> obstacle_names,
+                                   std::string recording_name, const ResidualOptions& options)
+    : ResidualAnalyzer(std::make_shared<const RecordingResidualFacts>(
+          ComputeResidualFacts(rest_mesh, scene, object_masks, std::move(obstacle_names),
+                               std::move(recording_name), options))) {}
+
+ResidualAnalyzer::ResidualAnalyzer(std::shared_ptr<const RecordingResidualFacts> facts)
+    : facts_(CheckedFacts(std::move(facts))),
+      mesh_(*facts_->rest_mesh),
+      scene_(*facts_->scene),
+      object_masks_(*facts_->object_masks),
+      options_(facts_->options),
+      heat_map_(facts_->heat_map),
+      regions_(facts_->regions) {
+  frames_.reserve(scene_.num_frames);
   claimed_ = BitMask(object_masks_[0].width(), object_masks_[0].height(),
                      object_masks_[0].origin_x(), object_masks_[0].origin_y());
   previous_mesh_ = claimed_;
@@ -367,7 +413,7 @@ void ResidualAnalyzer::Initialise() {
 Vec2 ResidualAnalyzer::NearestBoundaryRestPoint(std::span<const Vec2> positions,
                                                 const Vec2& p) const {
   double best = std::numeric_limits<double>::infinity();
-  Vec2 rest = rest_centroid_;
+  Vec2 rest = facts_->rest_centroid_px;
   for (const auto& loop : mesh_.boundary_loops) {
     const size_t m = loop.size();
     for (size_t i = 0; i < m; ++i) {
@@ -397,14 +443,16 @@ void ResidualAnalyzer::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPh
   if (loaded) (missed ? heat_map_.loaded_missed : heat_map_.loaded_extra)[cell] += 1.0;
   if (released) (missed ? heat_map_.released_missed : heat_map_.released_extra)[cell] += 1.0;
 
-  const Vec2 d = rest - rest_centroid_;
+  const RecordingResidualFacts& facts = *facts_;
+  const PushSummary& push = facts.push;
+  const Vec2 d = rest - facts.rest_centroid_px;
   std::array<RestRegion, 5> in = {
-      d.dot(push_.push_axis) < 0.0 ? RestRegion::kNear : RestRegion::kFar,
-      (rest - side_origin_).dot(side_axis_) < 0.0 ? RestRegion::kSideNeg : RestRegion::kSidePos,
+      d.dot(push.push_axis) < 0.0 ? RestRegion::kNear : RestRegion::kFar,
+      (rest - facts.side_origin_px).dot(facts.side_axis) < 0.0 ? RestRegion::kSideNeg : RestRegion::kSidePos,
       d.x() < 0 ? RestRegion::kLeft : RestRegion::kRight,
       d.y() < 0 ? RestRegion::kTop : RestRegion::kBottom, RestRegion::kAll};
-  const bool contact = push_.has_push &&
-                       (rest - push_.contact_site_px).norm() < push_.contact_zone_radius_px;
+  const bool contact = push.has_push &&
+                       (rest - push.contact_site_px).norm() < push.contact_zone_radius_px;
   for (int g = 0; g < 3; ++g) {
     if ((g == 1 && !loaded) || (g == 2 && !released)) continue;
     auto& counts = regions_.counts[g];
@@ -414,7 +462,7 @@ void ResidualAnalyzer::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPh
       (missed ? c.missed : c.extra) += 1;
     }
   }
-  if (!push_.has_push || loaded) {
+  if (!push.has_push || loaded) {
     dipole_sum_ += (missed ? 1.0 : -1.0) * d;
     dipole_weight_ += 1.0;
   }
@@ -424,7 +472,7 @@ void ResidualAnalyzer::MapResidualToRest(std::span<const Vec2> positions, const 
                                          int frame) {
   const BitMask& object = object_masks_[frame];
   ResidualFrame& record = frames_.back();
-  const LoadPhase phase = phases_[frame];
+  const LoadPhase phase = facts_->phases[frame];
   const int num_bands = static_cast<int>(options_.obstacle_bands_px.size());
   const Disc* discs = scene_.ObstaclesAt(frame);
   const int ox = object.origin_x(), oy = object.origin_y();
@@ -524,13 +572,13 @@ void ResidualAnalyzer::AddFrame(int frame, std::span<const Vec2> positions,
   ResidualFrame r;
   r.frame = frame;
   r.time_s = frame * scene_.frame_time_s;
-  r.phase = phases_[frame];
+  r.phase = facts_->phases[frame];
   r.missed_px = score.missed_px;
   r.extra_px = score.extra_px;
   r.object_px = score.object_px;
   r.mesh_px = score.mesh_px;
   r.iou = score.iou;
-  const MaskMoments& om = object_moments_[frame];
+  const MaskMoments& om = facts_->object_moments[frame];
   const MaskMoments mm = ComputeMoments(mesh_mask);
   r.object_centroid_px = om.centroid_px;
   r.mesh_centroid_px = mm.centroid_px;
@@ -547,8 +595,8 @@ void ResidualAnalyzer::AddFrame(int frame, std::span<const Vec2> positions,
   } else {
     r.aligned_xor_px = score.xor_px;
   }
-  r.force_n = force_n_[frame];
-  r.object_deformation = object_deformation_[frame];
+  r.force_n = facts_->force_n[frame];
+  r.object_deformation = facts_->object_deformation[frame];
   double strain_sum = 0.0;
   for (int e = 0; e < mesh_.NumEdges(); ++e) {
     const auto& edge = mesh_.edges[e];
@@ -558,7 +606,7 @@ void ResidualAnalyzer::AddFrame(int frame, std::span<const Vec2> positions,
     r.mesh_max_strain = std::max(r.mesh_max_strain, s);
   }
   r.mesh_mean_strain = mesh_.NumEdges() > 0 ? strain_sum / mesh_.NumEdges() : 0.0;
-  r.object_change_px = object_change_px_[frame];
+  r.object_change_px = facts_->object_change_px[frame];
   r.mesh_change_px = frame > 0 ? CountXorShifted(mesh_mask, previous_mesh_, 0, 0) : 0;
   previous_mesh_ = mesh_mask;
   const size_t bands = static_cast<size_t>(scene_.num_obstacles) * options_.obstacle_bands_px.size();

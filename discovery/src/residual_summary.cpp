@@ -197,20 +197,20 @@ const PhaseSummary* ResidualAnalysis::Phase(LoadPhase phase) const {
 
 ResidualAnalysis ResidualAnalyzer::Finish() const {
   ResidualAnalysis out;
-  out.recording = recording_name_;
+  out.recording = facts_->recording_name;
   out.fps = 1.0 / scene_.frame_time_s;
   out.num_frames = scene_.num_frames;
   out.frames_analysed = static_cast<int>(frames_.size());
-  out.obstacle_names = obstacle_names_;
+  out.obstacle_names = facts_->obstacle_names;
   out.obstacle_bands_px = options_.obstacle_bands_px;
-  out.rest_centroid_px = rest_centroid_;
-  out.rest_area_px = rest_area_px_;
-  out.rest_perimeter_px = rest_perimeter_px_;
-  out.rest_radius_of_gyration_px = rest_gyration_px_;
+  out.rest_centroid_px = facts_->rest_centroid_px;
+  out.rest_area_px = facts_->rest_area_px;
+  out.rest_perimeter_px = facts_->rest_perimeter_px;
+  out.rest_radius_of_gyration_px = facts_->rest_radius_of_gyration_px;
   out.frames = frames_;
   out.heat_map = heat_map_;
   out.regions = regions_;
-  out.push = push_;
+  out.push = facts_->push;
   const int n = out.frames_analysed;
   const double fps = out.fps;
   const size_t bands = static_cast<size_t>(scene_.num_obstacles) * options_.obstacle_bands_px.size();
@@ -247,12 +247,13 @@ ResidualAnalysis ResidualAnalyzer::Finish() const {
   out.mean_xor_px = static_cast<double>(out.xor_sum) / n;
   out.mean_iou = iou_sum / n;
   out.mean_aligned_xor_px = Mean(aligned);
-  out.residual_thickness_px = rest_perimeter_px_ > 0.0 ? out.mean_xor_px / rest_perimeter_px_ : 0.0;
+  const double perimeter = facts_->rest_perimeter_px;
+  out.residual_thickness_px = perimeter > 0.0 ? out.mean_xor_px / perimeter : 0.0;
   {
     std::vector<double> sorted = xor_px;
     const size_t k = std::min(sorted.size() - 1, static_cast<size_t>(0.9 * sorted.size()));
     std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
-    out.p90_thickness_px = rest_perimeter_px_ > 0.0 ? sorted[k] / rest_perimeter_px_ : 0.0;
+    out.p90_thickness_px = perimeter > 0.0 ? sorted[k] / perimeter : 0.0;
   }
 
   // Worst frames, at least 5 % of the recording apart.
@@ -353,7 +354,7 @@ ResidualAnalysis ResidualAnalyzer::Finish() const {
         ++ka;
       }
     }
-    for (int f = 0; f < n; ++f) aniso += object_moments_[f].anisotropy;
+    for (int f = 0; f < n; ++f) aniso += facts_->object_moments[f].anisotropy;
     m.mean_anisotropy = aniso / n;
     if (k > 0) {
       m.mean_offset_px = sum / k;
@@ -498,8 +499,8 @@ ResidualAnalysis ResidualAnalyzer::Finish() const {
     double so_far = 0.0;
     for (int f = 0; f < n; ++f) {
       const LoadPhase p = frames_[f].phase;
-      if (f > 0 && IsLoaded(p) && pusher_ >= 0) {
-        so_far += PusherAdvance(scene_, pusher_, f, a);
+      if (f > 0 && IsLoaded(p) && facts_->pusher >= 0) {
+        so_far += PusherAdvance(scene_, facts_->pusher, f, a);
       }
       if (!IsLoaded(p)) continue;
       pushed.push_back(so_far);
@@ -529,7 +530,7 @@ ResidualAnalysis ResidualAnalyzer::Finish() const {
             (frames_[end].force_n - frames_[start].force_n) / frames_[start].force_n;
       }
     }
-    MeasureForceAgainstTravel(frames_, scene_, pusher_, push);
+    MeasureForceAgainstTravel(frames_, scene_, facts_->pusher, push);
   }
 
   // Residual against deformation.
@@ -598,9 +599,9 @@ ResidualAnalysis ResidualAnalyzer::Finish() const {
     Contrast(c[at(RestRegion::kNear)], rg.area_px[at(RestRegion::kNear)],
              c[at(RestRegion::kFar)], rg.area_px[at(RestRegion::kFar)], &rg.near_far_asymmetry,
              &unused);
-    if (dipole_weight_ > 0.0 && rest_gyration_px_ > 0.0) {
-      rg.signed_dipole = dipole_sum_ / (dipole_weight_ * rest_gyration_px_);
-      rg.side_dipole = rg.signed_dipole.dot(side_axis_);
+    if (dipole_weight_ > 0.0 && facts_->rest_radius_of_gyration_px > 0.0) {
+      rg.signed_dipole = dipole_sum_ / (dipole_weight_ * facts_->rest_radius_of_gyration_px);
+      rg.side_dipole = rg.signed_dipole.dot(facts_->side_axis);
     }
   }
   return out;

@@ -303,7 +303,7 @@ void StageCalibrator::Measure(Fit* fit) const {
   for (int r = 0; r < n; ++r) {
     try {
       Evaluator evaluator(*recs_[r].prepared, o_.simulation, model);
-      ResidualAnalyzer analyzer(*recs_[r].prepared);
+      ResidualAnalyzer analyzer(recs_[r].residual_facts);
       fit->results[r] = evaluator.Evaluate(fit->values, analyzer);
       fit->residuals[r] = analyzer.Finish();
       fit->residuals[r].recording = recs_[r].name;

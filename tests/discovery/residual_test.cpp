@@ -4,6 +4,7 @@
 
 #include "calib/discovery/residual.h"
 
+#include "calib/evaluator/evaluation.h"
 #include "calib/evaluator/rasterizer.h"
 #include "support/test_support.h"
 
@@ -12,7 +13,10 @@
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <numbers>
+#include <string>
+#include <thread>
 #include <vector>
 
 namespace calib {
@@ -583,6 +587,104 @@ TEST(ResidualAnalyzer, JsonRoundTripsAndRunsAreDeterministic) {
     EXPECT_NE(std::string(e.what()).find("persistence.persistent_ratio"), std::string::npos)
         << e.what();
   }
+}
+
+// ---------------------------------------------------------------------------
+// The model-independent facts of a recording, computed once and shared.
+
+// Feeds the dent case's mesh drifting sideways and sagging, a little more
+// every frame (so that every part of the per-frame work has residual
+// pixels to map, inside and outside the simulated triangles).
+void FeedDriftingMesh(const DentCase& c, ResidualAnalyzer& analyzer) {
+  Rasterizer rasterizer;
+  BitMask mesh_mask(320, 240);
+  std::vector<Vec2> positions(c.mesh.rest_positions.size());
+  for (int f = 0; f < c.scene.num_frames; ++f) {
+    for (size_t i = 0; i < positions.size(); ++i) {
+      const Vec2& p = c.mesh.rest_positions[i];
+      positions[i] = Vec2(p.x() + 3.0 * std::sin(0.2 * f), p.y() + 0.002 * f * (p.y() - 100.0));
+    }
+    rasterizer.RasterizeMesh(c.mesh, positions, mesh_mask);
+    analyzer.AddFrame(f, positions, mesh_mask);
+  }
+}
+
+std::string AnalysisJson(ResidualAnalyzer& analyzer, const DentCase& c) {
+  FeedDriftingMesh(c, analyzer);
+  return ToJson(analyzer.Finish()).dump();
+}
+
+TEST(RecordingResidualFacts, SharedFactsGiveExactlyTheAnalysisOfTheOldConstructors) {
+  for (const bool plastic : {true, false}) {
+    const DentCase c(plastic, 0.4);
+    ResidualAnalyzer own(c.mesh, c.scene, c.object, {"finger"}, "dent");
+    const std::string expected = AnalysisJson(own, c);
+
+    const auto facts = std::make_shared<const RecordingResidualFacts>(
+        ComputeResidualFacts(c.mesh, c.scene, c.object, {"finger"}, "dent"));
+    EXPECT_EQ(facts->phases, own.phases());
+    EXPECT_TRUE(facts->push.has_push);
+    ResidualAnalyzer shared(facts);
+    EXPECT_EQ(AnalysisJson(shared, c), expected) << "plastic " << plastic;
+
+    // Two analysers on one facts object at once, on two threads: the same
+    // analysis.
+    ResidualAnalyzer first(facts), second(facts);
+    std::string json_first, json_second;
+    std::thread a([&] { json_first = AnalysisJson(first, c); });
+    std::thread b([&] { json_second = AnalysisJson(second, c); });
+    a.join();
+    b.join();
+    EXPECT_EQ(json_first, expected);
+    EXPECT_EQ(json_second, expected);
+  }
+}
+
+TEST(RecordingResidualFacts, FromAPreparedRecordingAsTheOldConstructor) {
+  const DentCase c(true, 0.0);
+  PreparedRecording prepared;
+  prepared.recording.folder = "/recordings/dent_01";
+  prepared.recording.obstacles.push_back({"finger", c.scene.obstacle_discs});
+  prepared.object_masks = c.object;
+  prepared.mesh = c.mesh;
+  prepared.scene = c.scene;
+  ResidualOptions options;
+  options.heat_map_cells = 40;
+  options.obstacle_bands_px = {4.0, 12.0};
+
+  ResidualAnalyzer own(prepared, options);
+  const auto facts =
+      std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(prepared, options));
+  EXPECT_EQ(facts->recording_name, "dent_01");
+  EXPECT_EQ(facts->obstacle_names, std::vector<std::string>{"finger"});
+  ResidualAnalyzer shared(facts);
+  const std::string expected = AnalysisJson(own, c);
+  EXPECT_EQ(AnalysisJson(shared, c), expected);
+  EXPECT_EQ(nlohmann::json::parse(expected)["obstacle_bands_px"].size(), 2u)
+      << "the facts' options are the analyser's";
+}
+
+TEST(RecordingResidualFacts, RejectsWhatTheConstructorRejects) {
+  ShiftCase c;
+  const auto message = [&](const Scene& scene, std::vector<std::string> names) {
+    try {
+      ComputeResidualFacts(c.mesh, scene, c.object, std::move(names), "x");
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  EXPECT_EQ(message(StillScene(2, 30.0), {}),
+            "ResidualAnalyzer: 1 object masks for a scene of 2 frames");
+  EXPECT_EQ(message(c.scene, {"a"}), "ResidualAnalyzer: 1 obstacle names for 0 obstacles");
+  ResidualOptions bad;
+  bad.heat_map_cells = 0;
+  EXPECT_THROW(ComputeResidualFacts(c.mesh, c.scene, c.object, {}, "x", bad),
+               std::invalid_argument);
+  EXPECT_THROW(ResidualAnalyzer(std::shared_ptr<const RecordingResidualFacts>()),
+               std::invalid_argument);
+  EXPECT_THROW(ResidualAnalyzer(std::make_shared<const RecordingResidualFacts>()),
+               std::invalid_argument);
 }
 
 }  // namespace

@@ -12,6 +12,15 @@
 //   evaluator.Evaluate(params, analyzer);
 //   const ResidualAnalysis analysis = analyzer.Finish();
 //
+// What does not depend on the model (load phases, the object masks'
+// moments, change and deformation, the push, the rest shape's figures) is a
+// RecordingResidualFacts, computed once per recording and shared read-only
+// by the analysers of every fit on it (also on several threads at once):
+//
+//   auto facts = std::make_shared<const RecordingResidualFacts>(
+//       ComputeResidualFacts(prepared));
+//   ResidualAnalyzer analyzer(facts);  // one per fit
+//
 // Per frame it splits the XOR of object and mesh into missed pixels (object,
 // not mesh) and extra pixels (mesh, not object); counts them in distance
 // bands around every obstacle disc; maps each one back to the rest shape
@@ -44,6 +53,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -386,20 +396,75 @@ struct ResidualAnalysis {
 nlohmann::json ToJson(const ResidualAnalysis& analysis, bool include_frames = true);
 ResidualAnalysis ResidualAnalysisFromJson(const nlohmann::json& doc);
 
+/// What the residual analysis knows about a recording before the pass: all
+/// that depends on the recording and the options but not on the model or
+/// its parameters. Computed once per recording (ComputeResidualFacts) and
+/// shared read-only by any number of ResidualAnalyzers.
+struct RecordingResidualFacts {
+  /// The parts it was computed from; not owned: they must outlive the facts
+  /// and every analyser built on them.
+  const Mesh* rest_mesh = nullptr;
+  const Scene* scene = nullptr;
+  const std::vector<BitMask>* object_masks = nullptr;
+  std::vector<std::string> obstacle_names;  ///< one per scene obstacle
+  std::string recording_name;
+  ResidualOptions options;
+
+  /// Per frame (scene.num_frames entries each).
+  std::vector<LoadPhase> phases;
+  std::vector<MaskMoments> object_moments;
+  std::vector<double> force_n;             ///< |force| of the sensor, 0 without one
+  std::vector<double> object_deformation;  ///< ResidualFrame::object_deformation
+  std::vector<int64_t> object_change_px;   ///< ResidualFrame::object_change_px
+  int pusher = -1;  ///< the force obstacle, else the obstacle that travels most; -1: none
+  /// The push's model-independent fields (peak, axis, contact site and zone,
+  /// distance, eccentricity); Finish fills in the rest.
+  PushSummary push;
+  Vec2 rest_centroid_px = Vec2::Zero();
+  double rest_area_px = 0.0;
+  double rest_perimeter_px = 0.0;
+  double rest_radius_of_gyration_px = 0.0;
+  Vec2 side_axis{1.0, 0.0};  ///< push_axis turned +90 degrees
+  Vec2 side_origin_px = Vec2::Zero();  ///< the contact site, the rest centroid without a push
+  /// The accumulators' starting state: the heat map's grid and rest areas
+  /// (all sums 0) and the regions' rest areas (all counts 0).
+  RestHeatMap heat_map;
+  RegionSummary regions;
+};
+
+/// The facts of a recording given by its parts (which must outlive the
+/// result): the rest mesh, the scene (obstacles, forces, frame time) and one
+/// object mask per scene frame, all of one shape. Throws
+/// std::invalid_argument for invalid options, mask count or shapes that do
+/// not match, or obstacle names of the wrong count (empty: "obstacle_0",
+/// ...).
+RecordingResidualFacts ComputeResidualFacts(const Mesh& rest_mesh, const Scene& scene,
+                                            const std::vector<BitMask>& object_masks,
+                                            std::vector<std::string> obstacle_names,
+                                            std::string recording_name,
+                                            const ResidualOptions& options = {});
+/// The facts of a prepared recording (which must outlive the result); the
+/// recording's name is its folder's name, the obstacles' names its tracks'.
+RecordingResidualFacts ComputeResidualFacts(const PreparedRecording& prepared,
+                                            const ResidualOptions& options = {});
+
 /// The one-pass analyser. See the top of this file.
 class ResidualAnalyzer {
  public:
   /// From a prepared recording (which must outlive the analyser); the
-  /// recording's name is its folder's name.
+  /// recording's name is its folder's name. Computes the facts itself.
   explicit ResidualAnalyzer(const PreparedRecording& prepared, const ResidualOptions& options = {});
-  /// From the parts (which must outlive the analyser): the rest mesh, the
-  /// scene (obstacles, forces, frame time) and one object mask per scene
-  /// frame, all of one shape. Throws std::invalid_argument for invalid
-  /// options, mask count or shapes that do not match, or obstacle names of
-  /// the wrong count (empty: "obstacle_0", ...).
+  /// From the parts (which must outlive the analyser); see
+  /// ComputeResidualFacts (the facts are computed here, the same exceptions
+  /// thrown).
   ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene, const std::vector<BitMask>& object_masks,
                    std::vector<std::string> obstacle_names, std::string recording_name,
                    const ResidualOptions& options = {});
+  /// From facts computed before (shared, read only; the parts they point to
+  /// must outlive the analyser), with the options they were computed with.
+  /// Gives exactly the analysis the constructors above give. Throws
+  /// std::invalid_argument for null facts.
+  explicit ResidualAnalyzer(std::shared_ptr<const RecordingResidualFacts> facts);
 
   /// Frame `frame` (0, 1, 2, ... in order; throws std::invalid_argument
   /// otherwise) with the mesh at `positions` (#N, frame pixels) and its
@@ -415,39 +480,25 @@ class ResidualAnalyzer {
   /// The analysis of the frames added so far (any number, also none).
   ResidualAnalysis Finish() const;
 
-  const std::vector<LoadPhase>& phases() const { return phases_; }
+  const std::vector<LoadPhase>& phases() const { return facts_->phases; }
+  const RecordingResidualFacts& facts() const { return *facts_; }
 
  private:
   struct RestPoint {
     Vec2 rest;
     bool missed;
   };
-  void Initialise();
   void MapResidualToRest(std::span<const Vec2> positions, const BitMask& mesh_mask, int frame);
   void AccumulateRestPixel(const Vec2& rest, bool missed, LoadPhase phase);
   Vec2 NearestBoundaryRestPoint(std::span<const Vec2> positions, const Vec2& p) const;
 
+  // Known before the pass (shared; mesh_, scene_, object_masks_ and
+  // options_ refer into it).
+  std::shared_ptr<const RecordingResidualFacts> facts_;
   const Mesh& mesh_;
   const Scene& scene_;
   const std::vector<BitMask>& object_masks_;
-  std::vector<std::string> obstacle_names_;
-  std::string recording_name_;
-  ResidualOptions options_;
-
-  // Known before the pass.
-  std::vector<LoadPhase> phases_;
-  std::vector<MaskMoments> object_moments_;
-  std::vector<double> force_n_;
-  std::vector<double> object_deformation_;
-  std::vector<int64_t> object_change_px_;
-  int pusher_ = -1;
-  PushSummary push_;
-  Vec2 rest_centroid_ = Vec2::Zero();
-  double rest_area_px_ = 0.0;
-  double rest_perimeter_px_ = 0.0;
-  double rest_gyration_px_ = 0.0;
-  Vec2 side_axis_{1.0, 0.0};
-  Vec2 side_origin_ = Vec2::Zero();
+  const ResidualOptions& options_;
 
   // Accumulated.
   std::vector<ResidualFrame> frames_;
