@@ -4,6 +4,7 @@
 
 #include "calib/evaluator/residual.h"
 
+#include "calib/core/enum_names.h"
 #include "calib/evaluator/evaluation.h"
 #include "calib/evaluator/rasterizer.h"
 
@@ -18,8 +19,19 @@
 namespace calib {
 namespace {
 
-constexpr std::array<const char*, kNumRestRegions> kRegionNames = {
-    "near", "far", "side_neg", "side_pos", "left", "right", "top", "bottom", "contact", "all"};
+constexpr auto kRegionNames = std::to_array<EnumName<RestRegion>>({
+    {RestRegion::kNear, "near"},
+    {RestRegion::kFar, "far"},
+    {RestRegion::kSideNeg, "side_neg"},
+    {RestRegion::kSidePos, "side_pos"},
+    {RestRegion::kLeft, "left"},
+    {RestRegion::kRight, "right"},
+    {RestRegion::kTop, "top"},
+    {RestRegion::kBottom, "bottom"},
+    {RestRegion::kContact, "contact"},
+    {RestRegion::kAll, "all"},
+});
+static_assert(kRegionNames.size() == kNumRestRegions);
 
 // 1 where an object pixel lies within `reach` px of `centre` (pixel centres).
 bool Touches(const BitMask& mask, const Vec2& centre, double reach) {
@@ -52,7 +64,7 @@ double ProjectOnSegment(const Vec2& p, const Vec2& a, const Vec2& b, double* dis
 
 }  // namespace
 
-std::string ToString(RestRegion region) { return kRegionNames[static_cast<int>(region)]; }
+std::string ToString(RestRegion region) { return EnumToString(kRegionNames, region); }
 
 bool ResidualOptions::IsValid(std::string* error) const {
   auto fail = [&](const std::string& message) {

@@ -1,5 +1,7 @@
 #include "calib/jobs/objective.h"
 
+#include "calib/core/enum_names.h"
+
 #include <fmt/format.h>
 
 #include <stdexcept>
@@ -7,15 +9,19 @@
 
 namespace calib {
 
-std::string ToString(CandidateStatus status) {
-  return status == CandidateStatus::kOk ? "ok" : "failed";
-}
+namespace {
+
+constexpr auto kCandidateStatusNames = std::to_array<EnumName<CandidateStatus>>({
+    {CandidateStatus::kOk, "ok"},
+    {CandidateStatus::kFailed, "failed"},
+});
+
+}  // namespace
+
+std::string ToString(CandidateStatus status) { return EnumToString(kCandidateStatusNames, status); }
 
 CandidateStatus CandidateStatusFromString(std::string_view text) {
-  if (text == "ok") return CandidateStatus::kOk;
-  if (text == "failed") return CandidateStatus::kFailed;
-  throw std::invalid_argument(
-      fmt::format("candidate status '{}' is unknown: expected ok or failed", text));
+  return EnumFromString(kCandidateStatusNames, "candidate status", text);
 }
 
 ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& results,

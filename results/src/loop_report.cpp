@@ -2,6 +2,8 @@
 
 #include "calib/results/loop_report.h"
 
+#include "calib/core/enum_names.h"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -210,21 +212,20 @@ RecordingScore RecordingScore::FromEvaluation(const std::string& recording,
   return e;
 }
 
-std::string ToString(StageDecision decision) {
-  switch (decision) {
-    case StageDecision::kBase: return "base";
-    case StageDecision::kAccepted: return "accepted";
-    case StageDecision::kRejected: return "rejected";
-  }
-  return "?";
-}
+namespace {
+
+constexpr auto kStageDecisionNames = std::to_array<EnumName<StageDecision>>({
+    {StageDecision::kBase, "base"},
+    {StageDecision::kAccepted, "accepted"},
+    {StageDecision::kRejected, "rejected"},
+});
+
+}  // namespace
+
+std::string ToString(StageDecision decision) { return EnumToString(kStageDecisionNames, decision); }
 
 StageDecision StageDecisionFromString(const std::string& text) {
-  if (text == "base") return StageDecision::kBase;
-  if (text == "accepted") return StageDecision::kAccepted;
-  if (text == "rejected") return StageDecision::kRejected;
-  throw std::invalid_argument(
-      fmt::format("stage decision '{}' is unknown: expected base, accepted or rejected", text));
+  return EnumFromString(kStageDecisionNames, "stage decision", text);
 }
 
 const RecordingScore* ReportStage::ErrorOn(const std::string& recording) const {

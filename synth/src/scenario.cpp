@@ -1,5 +1,7 @@
 #include "calib/synth/scenario.h"
 
+#include "calib/core/enum_names.h"
+
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
@@ -12,12 +14,19 @@
 
 namespace calib::synth {
 
-std::string ToString(ScenarioKind kind) { return kind == ScenarioKind::kPush ? "push" : "hang"; }
+namespace {
+
+constexpr auto kScenarioKindNames = std::to_array<EnumName<ScenarioKind>>({
+    {ScenarioKind::kPush, "push"},
+    {ScenarioKind::kHang, "hang"},
+});
+
+}  // namespace
+
+std::string ToString(ScenarioKind kind) { return EnumToString(kScenarioKindNames, kind); }
 
 ScenarioKind ScenarioKindFromString(const std::string& text) {
-  if (text == "push") return ScenarioKind::kPush;
-  if (text == "hang") return ScenarioKind::kHang;
-  throw std::invalid_argument(fmt::format("scenario kind '{}' is unknown (push or hang)", text));
+  return EnumFromString(kScenarioKindNames, "scenario kind", text);
 }
 
 std::vector<std::string> Effects::EnabledNames() const {
