@@ -118,10 +118,7 @@ ResidualAnalyzer::ResidualAnalyzer(const PreparedRecording& prepared,
       object_masks_(prepared.object_masks),
       options_(options) {
   for (const ObstacleTrack& t : prepared.recording.obstacles) obstacle_names_.push_back(t.name);
-  recording_name_ = prepared.recording.folder.filename().string();
-  if (recording_name_.empty()) {
-    recording_name_ = prepared.recording.folder.parent_path().filename().string();
-  }
+  recording_name_ = RecordingDisplayName(prepared.recording.folder);
   Initialise();
 }
 

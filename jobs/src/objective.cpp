@@ -1,6 +1,7 @@
 #include "calib/jobs/objective.h"
 
 #include "calib/core/enum_names.h"
+#include "calib/evaluator/recording.h"
 
 #include <fmt/format.h>
 
@@ -71,8 +72,7 @@ class RecordingWorker final : public ObjectiveWorker {
     evaluators_.reserve(recordings.size());
     for (const auto& prepared : recordings) {
       evaluators_.emplace_back(*prepared, options, model);
-      names_.push_back(prepared->recording.folder.filename().string());
-      if (names_.back().empty()) names_.back() = prepared->recording.folder.string();
+      names_.push_back(RecordingDisplayName(prepared->recording.folder));
       frames_total_ += prepared->scene.num_frames;
     }
     results_.reserve(recordings.size());
