@@ -111,7 +111,7 @@ bool ResidualOptions::IsValid(std::string* error) const {
   return phases.IsValid(error);
 }
 
-ResidualAnalyzer::ResidualAnalyzer(const PreparedRecording& prepared,
+ResidualAnalyser::ResidualAnalyser(const PreparedRecording& prepared,
                                    const ResidualOptions& options)
     : mesh_(prepared.mesh),
       scene_(prepared.scene),
@@ -122,7 +122,7 @@ ResidualAnalyzer::ResidualAnalyzer(const PreparedRecording& prepared,
   Initialise();
 }
 
-ResidualAnalyzer::ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene,
+ResidualAnalyser::ResidualAnalyser(const Mesh& rest_mesh, const Scene& scene,
                                    const std::vector<BitMask>& object_masks,
                                    std::vector<std::string> obstacle_names,
                                    std::string recording_name, const ResidualOptions& options)
@@ -135,18 +135,18 @@ ResidualAnalyzer::ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene,
   Initialise();
 }
 
-void ResidualAnalyzer::Initialise() {
+void ResidualAnalyser::Initialise() {
   std::string error;
   if (!options_.IsValid(&error)) throw std::invalid_argument(error);
   const int n = scene_.num_frames;
   if (n < 1 || static_cast<int>(object_masks_.size()) != n) {
     throw std::invalid_argument(fmt::format(
-        "ResidualAnalyzer: {} object masks for a scene of {} frames", object_masks_.size(), n));
+        "ResidualAnalyser: {} object masks for a scene of {} frames", object_masks_.size(), n));
   }
   for (int f = 1; f < n; ++f) {
     if (!object_masks_[f].SameShape(object_masks_[0])) {
       throw std::invalid_argument(
-          fmt::format("ResidualAnalyzer: object mask {} differs in shape from mask 0", f));
+          fmt::format("ResidualAnalyser: object mask {} differs in shape from mask 0", f));
     }
   }
   if (obstacle_names_.empty()) {
@@ -155,11 +155,11 @@ void ResidualAnalyzer::Initialise() {
     }
   }
   if (static_cast<int>(obstacle_names_.size()) != scene_.num_obstacles) {
-    throw std::invalid_argument(fmt::format("ResidualAnalyzer: {} obstacle names for {} obstacles",
+    throw std::invalid_argument(fmt::format("ResidualAnalyser: {} obstacle names for {} obstacles",
                                             obstacle_names_.size(), scene_.num_obstacles));
   }
   if (mesh_.NumNodes() < 3 || mesh_.NumTriangles() < 1) {
-    throw std::invalid_argument("ResidualAnalyzer: the rest mesh has no triangle");
+    throw std::invalid_argument("ResidualAnalyser: the rest mesh has no triangle");
   }
   const double fps = 1.0 / scene_.frame_time_s;
 
@@ -373,7 +373,7 @@ void ResidualAnalyzer::Initialise() {
   previous_mesh_ = claimed_;
 }
 
-Vec2 ResidualAnalyzer::NearestBoundaryRestPoint(std::span<const Vec2> positions,
+Vec2 ResidualAnalyser::NearestBoundaryRestPoint(std::span<const Vec2> positions,
                                                 const Vec2& p) const {
   double best = std::numeric_limits<double>::infinity();
   Vec2 rest = rest_centroid_;
@@ -392,7 +392,7 @@ Vec2 ResidualAnalyzer::NearestBoundaryRestPoint(std::span<const Vec2> positions,
   return rest;
 }
 
-void ResidualAnalyzer::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPhase phase) {
+void ResidualAnalyser::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPhase phase) {
   const int cx = std::clamp(
       static_cast<int>(std::floor((rest.x() - heat_map_.origin_px.x()) / heat_map_.cell_px)), 0,
       heat_map_.cols - 1);
@@ -429,7 +429,7 @@ void ResidualAnalyzer::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPh
   }
 }
 
-void ResidualAnalyzer::MapResidualToRest(std::span<const Vec2> positions, const BitMask& mesh_mask,
+void ResidualAnalyser::MapResidualToRest(std::span<const Vec2> positions, const BitMask& mesh_mask,
                                          int frame) {
   const BitMask& object = object_masks_[frame];
   ResidualFrame& record = frames_.back();
@@ -515,17 +515,17 @@ void ResidualAnalyzer::MapResidualToRest(std::span<const Vec2> positions, const 
   }
 }
 
-void ResidualAnalyzer::AddFrame(int frame, std::span<const Vec2> positions,
+void ResidualAnalyser::AddFrame(int frame, std::span<const Vec2> positions,
                                 const BitMask& mesh_mask) {
   if (frame != static_cast<int>(frames_.size()) || frame >= scene_.num_frames) {
     throw std::invalid_argument(fmt::format(
-        "ResidualAnalyzer::AddFrame: frame {} out of order (expected {} of {})", frame,
+        "ResidualAnalyser::AddFrame: frame {} out of order (expected {} of {})", frame,
         frames_.size(), scene_.num_frames));
   }
   if (static_cast<int>(positions.size()) != mesh_.NumNodes() ||
       !mesh_mask.SameShape(object_masks_[0])) {
     throw std::invalid_argument(fmt::format(
-        "ResidualAnalyzer::AddFrame: {} positions for {} nodes, or a mesh mask of another shape",
+        "ResidualAnalyser::AddFrame: {} positions for {} nodes, or a mesh mask of another shape",
         positions.size(), mesh_.NumNodes()));
   }
   const BitMask& object = object_masks_[frame];
@@ -580,22 +580,22 @@ void ResidualAnalyzer::AddFrame(int frame, std::span<const Vec2> positions,
 ResidualAnalysis AnalyseResidual(const PreparedRecording& prepared,
                                  const SimulationOptions& simulation, const ModelParameters& params,
                                  const ResidualOptions& options, EvaluationResult* result) {
-  ResidualAnalyzer analyzer(prepared, options);
+  ResidualAnalyser analyser(prepared, options);
   Evaluator evaluator(prepared, simulation);
-  EvaluationResult evaluation = evaluator.Evaluate(params, analyzer);
+  EvaluationResult evaluation = evaluator.Evaluate(params, analyser);
   if (result != nullptr) *result = std::move(evaluation);
-  return analyzer.Finish();
+  return analyser.Finish();
 }
 
 ResidualAnalysis AnalyseResidual(const PreparedRecording& prepared,
                                  const SimulationOptions& simulation, const ModelDefinition& model,
                                  const ParameterValues& values, const ResidualOptions& options,
                                  EvaluationResult* result) {
-  ResidualAnalyzer analyzer(prepared, options);
+  ResidualAnalyser analyser(prepared, options);
   Evaluator evaluator(prepared, simulation, model);
-  EvaluationResult evaluation = evaluator.Evaluate(values, analyzer);
+  EvaluationResult evaluation = evaluator.Evaluate(values, analyser);
   if (result != nullptr) *result = std::move(evaluation);
-  return analyzer.Finish();
+  return analyser.Finish();
 }
 
 }  // namespace calib

@@ -4,13 +4,13 @@
 // at a physical effect the model lacks (hypotheses.h turns them into ranked
 // effects).
 //
-// One pass. A ResidualAnalyzer is built from a recording's object masks, rest
+// One pass. A ResidualAnalyser is built from a recording's object masks, rest
 // mesh and scene; it is then fed every simulated frame in order, directly as
 // the on_frame callback of Evaluator::Evaluate:
 //
-//   ResidualAnalyzer analyzer(prepared);
-//   evaluator.Evaluate(params, analyzer);
-//   const ResidualAnalysis analysis = analyzer.Finish();
+//   ResidualAnalyser analyser(prepared);
+//   evaluator.Evaluate(params, analyser);
+//   const ResidualAnalysis analysis = analyser.Finish();
 //
 // Per frame it splits the XOR of object and mesh into missed pixels (object,
 // not mesh) and extra pixels (mesh, not object); counts them in distance
@@ -519,17 +519,17 @@ nlohmann::json ToJson(const ResidualAnalysis& analysis, bool include_frames = tr
 ResidualAnalysis ResidualAnalysisFromJson(const nlohmann::json& doc);
 
 /// The one-pass analyser. See the top of this file.
-class ResidualAnalyzer {
+class ResidualAnalyser {
  public:
   /// From a prepared recording (which must outlive the analyser); the
   /// recording's name is its folder's name.
-  explicit ResidualAnalyzer(const PreparedRecording& prepared, const ResidualOptions& options = {});
+  explicit ResidualAnalyser(const PreparedRecording& prepared, const ResidualOptions& options = {});
   /// From the parts (which must outlive the analyser): the rest mesh, the
   /// scene (obstacles, forces, frame time) and one object mask per scene
   /// frame, all of one shape. Throws std::invalid_argument for invalid
   /// options, mask count or shapes that do not match, or obstacle names of
   /// the wrong count (empty: "obstacle_0", ...).
-  ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene, const std::vector<BitMask>& object_masks,
+  ResidualAnalyser(const Mesh& rest_mesh, const Scene& scene, const std::vector<BitMask>& object_masks,
                    std::vector<std::string> obstacle_names, std::string recording_name,
                    const ResidualOptions& options = {});
 
@@ -590,6 +590,10 @@ class ResidualAnalyzer {
   BitMask claimed_;
   BitMask previous_mesh_;
 };
+
+/// The former spelling, kept only until jobs/src/loop.cpp (being rewritten)
+/// uses ResidualAnalyser; remove it then (issue 21, item 6).
+using ResidualAnalyzer = ResidualAnalyser;
 
 /// Evaluates `params` (the base model) on `prepared` and analyses the
 /// residual in the same pass. `result`, when not null, receives the
