@@ -1,24 +1,22 @@
 #include "calib/core/integrator.h"
 
-#include <stdexcept>
+#include "calib/core/enum_names.h"
 
 namespace calib {
+namespace {
 
-std::string ToString(IntegratorKind kind) {
-  switch (kind) {
-    case IntegratorKind::kFirstOrder: return "first_order";
-    case IntegratorKind::kVerlet: return "verlet";
-    case IntegratorKind::kImplicitFirstOrder: return "implicit_first_order";
-  }
-  return "unknown";
-}
+constexpr auto kIntegratorNames = std::to_array<EnumName<IntegratorKind>>({
+    {IntegratorKind::kFirstOrder, "first_order"},
+    {IntegratorKind::kVerlet, "verlet"},
+    {IntegratorKind::kImplicitFirstOrder, "implicit_first_order"},
+});
+
+}  // namespace
+
+std::string ToString(IntegratorKind kind) { return EnumToString(kIntegratorNames, kind); }
 
 IntegratorKind IntegratorKindFromString(const std::string& name) {
-  if (name == "first_order") return IntegratorKind::kFirstOrder;
-  if (name == "verlet") return IntegratorKind::kVerlet;
-  if (name == "implicit_first_order") return IntegratorKind::kImplicitFirstOrder;
-  throw std::invalid_argument("integrator '" + name +
-                              "' is unknown; expected first_order, verlet or implicit_first_order");
+  return EnumFromString(kIntegratorNames, "integrator", name);
 }
 
 void StepFirstOrder(double h_over_m, std::span<const Vec2> f, std::span<const double> inverse_weight,

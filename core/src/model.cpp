@@ -1,5 +1,6 @@
 #include "calib/core/model.h"
 
+#include "calib/core/enum_names.h"
 #include "force_kernels.h"
 
 #include <array>
@@ -8,16 +9,18 @@
 #include <stdexcept>
 
 namespace calib {
+namespace {
 
-std::string ToString(ForceKernel kernel) {
-  switch (kernel) {
-    case ForceKernel::kAuto: return "auto";
-    case ForceKernel::kBaseline: return "baseline";
-    case ForceKernel::kAvx2: return "avx2";
-    case ForceKernel::kAvx512: return "avx512";
-  }
-  return "unknown";
-}
+constexpr auto kForceKernelNames = std::to_array<EnumName<ForceKernel>>({
+    {ForceKernel::kAuto, "auto"},
+    {ForceKernel::kBaseline, "baseline"},
+    {ForceKernel::kAvx2, "avx2"},
+    {ForceKernel::kAvx512, "avx512"},
+});
+
+}  // namespace
+
+std::string ToString(ForceKernel kernel) { return EnumToString(kForceKernelNames, kernel); }
 
 Model::Model(const Mesh& mesh) : mesh_(&mesh) {
   const size_t num_edges = mesh.edges.size(), num_triangles = mesh.triangles.size();

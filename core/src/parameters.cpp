@@ -1,5 +1,7 @@
 #include "calib/core/parameters.h"
 
+#include "calib/core/enum_names.h"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -27,14 +29,15 @@ std::string KnownNames(const std::vector<ParameterSpec>& specs) {
 
 }  // namespace
 
-std::string ToString(ParameterScale scale) {
-  return scale == ParameterScale::kLog ? "log" : "linear";
-}
+constexpr auto kScaleNames = std::to_array<EnumName<ParameterScale>>({
+    {ParameterScale::kLinear, "linear"},
+    {ParameterScale::kLog, "log"},
+});
+
+std::string ToString(ParameterScale scale) { return EnumToString(kScaleNames, scale); }
 
 ParameterScale ParameterScaleFromString(const std::string& name) {
-  if (name == "linear") return ParameterScale::kLinear;
-  if (name == "log") return ParameterScale::kLog;
-  throw std::invalid_argument("scale '" + name + "' is unknown; expected linear or log");
+  return EnumFromString(kScaleNames, "scale", name);
 }
 
 double SearchScales::Positive(double value, double fallback) {

@@ -12,6 +12,8 @@
 
 #include "calib/discovery/hypotheses.h"
 
+#include "calib/evaluator/json_number.h"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -501,8 +503,6 @@ bool Ranked(const Hypothesis& x, const Hypothesis& y, const std::vector<std::str
   throw std::invalid_argument(fmt::format("hypothesis JSON: key '{}': {}", key, what));
 }
 
-json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-
 }  // namespace
 
 const std::vector<std::string>& TracedEffects() {
@@ -603,12 +603,12 @@ json ToJson(const Hypothesis& h) {
   json evidence = json::array();
   for (const Evidence& e : h.evidence) {
     evidence.push_back({{"signature", e.signature},
-                        {"value", Number(e.value)},
-                        {"support", Number(e.support)},
+                        {"value", JsonNumber(e.value)},
+                        {"support", JsonNumber(e.support)},
                         {"statement", e.statement}});
   }
-  return {{"effect", h.effect},         {"confidence", Number(h.confidence)},
-          {"applicability", Number(h.applicability)}, {"summary", h.summary},
+  return {{"effect", h.effect},         {"confidence", JsonNumber(h.confidence)},
+          {"applicability", JsonNumber(h.applicability)}, {"summary", h.summary},
           {"evidence", evidence},       {"recordings", h.recordings}};
 }
 

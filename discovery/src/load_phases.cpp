@@ -2,6 +2,8 @@
 
 #include "calib/discovery/load_phases.h"
 
+#include "calib/core/enum_names.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -12,8 +14,15 @@
 namespace calib {
 namespace {
 
-constexpr std::array<const char*, kNumLoadPhases> kPhaseNames = {
-    "free", "before_load", "loading", "hold", "unloading", "released"};
+constexpr auto kPhaseNames = std::to_array<EnumName<LoadPhase>>({
+    {LoadPhase::kFree, "free"},
+    {LoadPhase::kBeforeLoad, "before_load"},
+    {LoadPhase::kLoading, "loading"},
+    {LoadPhase::kHold, "hold"},
+    {LoadPhase::kUnloading, "unloading"},
+    {LoadPhase::kReleased, "released"},
+});
+static_assert(kPhaseNames.size() == kNumLoadPhases);
 
 // Central difference of v over +-h samples (one-sided at the ends), per
 // sample.
@@ -25,16 +34,10 @@ double Derivative(const std::vector<double>& v, int i, int h) {
 
 }  // namespace
 
-std::string ToString(LoadPhase phase) { return kPhaseNames[static_cast<int>(phase)]; }
+std::string ToString(LoadPhase phase) { return EnumToString(kPhaseNames, phase); }
 
 LoadPhase LoadPhaseFromString(const std::string& text) {
-  for (int i = 0; i < kNumLoadPhases; ++i) {
-    if (text == kPhaseNames[i]) return static_cast<LoadPhase>(i);
-  }
-  throw std::invalid_argument(fmt::format(
-      "load phase '{}' is unknown: expected free, before_load, loading, hold, unloading or "
-      "released",
-      text));
+  return EnumFromString(kPhaseNames, "load phase", text);
 }
 
 bool IsLoaded(LoadPhase phase) {

@@ -78,16 +78,6 @@ SimulationOptions LoopSimulationDefaults() {
   return o;
 }
 
-namespace {
-
-std::string RecordingName(const PreparedRecording& prepared) {
-  std::string name = prepared.recording.folder.filename().string();
-  if (name.empty()) name = prepared.recording.folder.parent_path().filename().string();
-  return name.empty() ? prepared.recording.folder.string() : name;
-}
-
-}  // namespace
-
 // =========================================================================
 // The loop.
 
@@ -147,8 +137,9 @@ void Loop::Prepare() {
     Log(fmt::format("preparing {} ({})", path.string(), train ? "train" : "held out"));
     r.prepared = std::make_shared<const PreparedRecording>(
         PrepareRecording(LoadRecording(path), o_.preparation));
-    r.name = RecordingName(*r.prepared);
-    for (int k = 2; names.count(r.name) != 0; ++k) r.name = fmt::format("{}_{}", RecordingName(*r.prepared), k);
+    const std::string name = RecordingDisplayName(r.prepared->recording.folder);
+    r.name = name;
+    for (int k = 2; names.count(r.name) != 0; ++k) r.name = fmt::format("{}_{}", name, k);
     names.insert(r.name);
     r.noise_px = SegmentationNoisePx(r.prepared->object_masks);
     r.residual_facts = std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(*r.prepared));

@@ -2,6 +2,9 @@
 
 #include "calib/discovery/loop_report.h"
 
+#include "calib/core/enum_names.h"
+#include "calib/evaluator/json_number.h"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -20,8 +23,6 @@ using nlohmann::json;
 [[noreturn]] void Bad(const std::string& key, const std::string& what) {
   throw std::invalid_argument(fmt::format("loop report JSON: key '{}': {}", key, what));
 }
-
-json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 // Typed access that names the key path on failure.
 class In {
@@ -78,9 +79,9 @@ class In {
 
 json ToJson(const RecordingScore& e) {
   json iou = json::array();
-  for (double v : e.frame_iou) iou.push_back(Number(v));
+  for (double v : e.frame_iou) iou.push_back(JsonNumber(v));
   return {{"recording", e.recording}, {"status", e.status},   {"xor_sum", e.xor_sum},
-          {"mean_iou", Number(e.mean_iou)}, {"frame_xor", e.frame_xor}, {"frame_iou", iou}};
+          {"mean_iou", JsonNumber(e.mean_iou)}, {"frame_xor", e.frame_xor}, {"frame_iou", iou}};
 }
 
 RecordingScore ErrorFromJson(const json& j, const std::string& path) {
@@ -102,7 +103,7 @@ RecordingScore ErrorFromJson(const json& j, const std::string& path) {
 
 json ToJson(const ParameterValues& values) {
   json j = json::object();
-  for (const auto& [name, v] : values) j[name] = Number(v);
+  for (const auto& [name, v] : values) j[name] = JsonNumber(v);
   return j;
 }
 
@@ -116,25 +117,25 @@ json ToJson(const ReportStage& s) {
           {"parameters", ToJson(s.parameters)},
           {"errors", errors},
           {"criterion", s.criterion},
-          {"criterion_value", Number(s.criterion_value)},
+          {"criterion_value", JsonNumber(s.criterion_value)},
           {"reason", s.reason},
-          {"calibration_time_s", Number(s.calibration_time_s)},
+          {"calibration_time_s", JsonNumber(s.calibration_time_s)},
           {"evaluations", s.evaluations}};
   if (s.equally_good.fits > 0) {
     const EquallyGoodFits& g = s.equally_good;
     j["equally_good"] = {{"fits", g.fits},
-                         {"training_tolerance_px", Number(g.training_tolerance_px)},
+                         {"training_tolerance_px", JsonNumber(g.training_tolerance_px)},
                          {"holdout_xor_min", g.holdout_xor_min},
                          {"holdout_xor_max", g.holdout_xor_max},
                          {"holdout_xor_median", g.holdout_xor_median},
-                         {"holdout_iou_at_min", Number(g.holdout_iou_at_min)}};
+                         {"holdout_iou_at_min", JsonNumber(g.holdout_iou_at_min)}};
   }
   if (s.holdout_sensitivity_px > 0.0) {
-    j["holdout_sensitivity_px"] = Number(s.holdout_sensitivity_px);
+    j["holdout_sensitivity_px"] = JsonNumber(s.holdout_sensitivity_px);
   }
   if (!s.restart_training_xor.empty()) {
     json restarts = json::array();
-    for (double x : s.restart_training_xor) restarts.push_back(Number(x));
+    for (double x : s.restart_training_xor) restarts.push_back(JsonNumber(x));
     j["restart_training_xor"] = restarts;
   }
   return j;
@@ -210,21 +211,20 @@ RecordingScore RecordingScore::FromEvaluation(const std::string& recording,
   return e;
 }
 
-std::string ToString(StageDecision decision) {
-  switch (decision) {
-    case StageDecision::kBase: return "base";
-    case StageDecision::kAccepted: return "accepted";
-    case StageDecision::kRejected: return "rejected";
-  }
-  return "?";
-}
+namespace {
+
+constexpr auto kStageDecisionNames = std::to_array<EnumName<StageDecision>>({
+    {StageDecision::kBase, "base"},
+    {StageDecision::kAccepted, "accepted"},
+    {StageDecision::kRejected, "rejected"},
+});
+
+}  // namespace
+
+std::string ToString(StageDecision decision) { return EnumToString(kStageDecisionNames, decision); }
 
 StageDecision StageDecisionFromString(const std::string& text) {
-  if (text == "base") return StageDecision::kBase;
-  if (text == "accepted") return StageDecision::kAccepted;
-  if (text == "rejected") return StageDecision::kRejected;
-  throw std::invalid_argument(
-      fmt::format("stage decision '{}' is unknown: expected base, accepted or rejected", text));
+  return EnumFromString(kStageDecisionNames, "stage decision", text);
 }
 
 const RecordingScore* ReportStage::ErrorOn(const std::string& recording) const {
@@ -250,14 +250,14 @@ nlohmann::json ToJson(const LoopReport& r) {
   j["command"] = r.command;
   j["seed"] = r.seed;
   j["selection_rule"] = r.selection_rule;
-  j["run_time_s"] = Number(r.run_time_s);
+  j["run_time_s"] = JsonNumber(r.run_time_s);
   json recordings = json::array();
   for (const ReportRecording& rec : r.recordings) {
     recordings.push_back({{"name", rec.name},
                           {"path", rec.path},
                           {"role", rec.role},
                           {"num_frames", rec.num_frames},
-                          {"fps", Number(rec.fps)}});
+                          {"fps", JsonNumber(rec.fps)}});
   }
   j["recordings"] = recordings;
   json stages = json::array();
@@ -284,7 +284,7 @@ nlohmann::json ToJson(const LoopReport& r) {
                         {"stage", o.stage},
                         {"frame", o.frame},
                         {"xor_px", o.xor_px},
-                        {"iou", Number(o.iou)},
+                        {"iou", JsonNumber(o.iou)},
                         {"png_file", o.png_file},
                         {"caption", o.caption}});
   }
@@ -300,11 +300,11 @@ nlohmann::json ToJson(const LoopReport& r) {
     const RecordingScore* before = base != nullptr ? base->ErrorOn(rec.name) : nullptr;
     const RecordingScore* after = final_stage != nullptr ? final_stage->ErrorOn(rec.name) : nullptr;
     row["before"] = before != nullptr ? json{{"xor_sum", before->xor_sum},
-                                             {"mean_iou", Number(before->mean_iou)},
+                                             {"mean_iou", JsonNumber(before->mean_iou)},
                                              {"status", before->status}}
                                       : json(nullptr);
     row["after"] = after != nullptr ? json{{"xor_sum", after->xor_sum},
-                                           {"mean_iou", Number(after->mean_iou)},
+                                           {"mean_iou", JsonNumber(after->mean_iou)},
                                            {"status", after->status}}
                                     : json(nullptr);
     table.push_back(row);

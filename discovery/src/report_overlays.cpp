@@ -3,6 +3,7 @@
 #include "calib/discovery/report_overlays.h"
 
 #include "calib/evaluator/overlay.h"
+#include "calib/evaluator/recording.h"
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
@@ -24,8 +25,7 @@ OverlayCapture::OverlayCapture(const PreparedRecording& prepared, std::vector<in
         fmt::format("OverlayCapture: scale = {}. Violated: 0 < scale <= 1.", scale));
   }
   std::sort(frames_.begin(), frames_.end());
-  recording_ = prepared.recording.folder.filename().string();
-  if (recording_.empty()) recording_ = prepared.recording.folder.parent_path().filename().string();
+  recording_ = RecordingDisplayName(prepared.recording.folder);
   if (!frames_.empty() && !video_.open(prepared.recording.video_path.string())) {
     throw RecordingError(
         fmt::format("{}: cannot open video", prepared.recording.video_path.string()));

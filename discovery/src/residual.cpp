@@ -5,6 +5,8 @@
 
 #include "calib/discovery/residual.h"
 
+#include "calib/core/enum_names.h"
+
 #include "calib/evaluator/evaluation.h"
 #include "calib/evaluator/rasterizer.h"
 
@@ -21,8 +23,19 @@
 namespace calib {
 namespace {
 
-constexpr std::array<const char*, kNumRestRegions> kRegionNames = {
-    "near", "far", "side_neg", "side_pos", "left", "right", "top", "bottom", "contact", "all"};
+constexpr auto kRegionNames = std::to_array<EnumName<RestRegion>>({
+    {RestRegion::kNear, "near"},
+    {RestRegion::kFar, "far"},
+    {RestRegion::kSideNeg, "side_neg"},
+    {RestRegion::kSidePos, "side_pos"},
+    {RestRegion::kLeft, "left"},
+    {RestRegion::kRight, "right"},
+    {RestRegion::kTop, "top"},
+    {RestRegion::kBottom, "bottom"},
+    {RestRegion::kContact, "contact"},
+    {RestRegion::kAll, "all"},
+});
+static_assert(kRegionNames.size() == kNumRestRegions);
 
 // 1 where an object pixel lies within `reach` px of `centre` (pixel centres).
 bool Touches(const BitMask& mask, const Vec2& centre, double reach) {
@@ -55,7 +68,7 @@ double ProjectOnSegment(const Vec2& p, const Vec2& a, const Vec2& b, double* dis
 
 }  // namespace
 
-std::string ToString(RestRegion region) { return kRegionNames[static_cast<int>(region)]; }
+std::string ToString(RestRegion region) { return EnumToString(kRegionNames, region); }
 
 bool ResidualOptions::IsValid(std::string* error) const {
   auto fail = [&](const std::string& message) {
@@ -106,10 +119,7 @@ RecordingResidualFacts ComputeResidualFacts(const PreparedRecording& prepared,
                                             const ResidualOptions& options) {
   std::vector<std::string> obstacle_names;
   for (const ObstacleTrack& t : prepared.recording.obstacles) obstacle_names.push_back(t.name);
-  std::string recording_name = prepared.recording.folder.filename().string();
-  if (recording_name.empty()) {
-    recording_name = prepared.recording.folder.parent_path().filename().string();
-  }
+  std::string recording_name = RecordingDisplayName(prepared.recording.folder);
   return ComputeResidualFacts(prepared.mesh, prepared.scene, prepared.object_masks,
                               std::move(obstacle_names), std::move(recording_name), options);
 }
@@ -133,12 +143,12 @@ RecordingResidualFacts ComputeResidualFacts(const Mesh& rest_mesh, const Scene& 
   const int n = scene.num_frames;
   if (n < 1 || static_cast<int>(object_masks.size()) != n) {
     throw std::invalid_argument(fmt::format(
-        "ResidualAnalyzer: {} object masks for a scene of {} frames", object_masks.size(), n));
+        "ResidualAnalyser: {} object masks for a scene of {} frames", object_masks.size(), n));
   }
   for (int f = 1; f < n; ++f) {
     if (!object_masks[f].SameShape(object_masks[0])) {
       throw std::invalid_argument(
-          fmt::format("ResidualAnalyzer: object mask {} differs in shape from mask 0", f));
+          fmt::format("ResidualAnalyser: object mask {} differs in shape from mask 0", f));
     }
   }
   if (facts.obstacle_names.empty()) {
@@ -147,11 +157,11 @@ RecordingResidualFacts ComputeResidualFacts(const Mesh& rest_mesh, const Scene& 
     }
   }
   if (static_cast<int>(facts.obstacle_names.size()) != scene.num_obstacles) {
-    throw std::invalid_argument(fmt::format("ResidualAnalyzer: {} obstacle names for {} obstacles",
+    throw std::invalid_argument(fmt::format("ResidualAnalyser: {} obstacle names for {} obstacles",
                                             facts.obstacle_names.size(), scene.num_obstacles));
   }
   if (mesh.NumNodes() < 3 || mesh.NumTriangles() < 1) {
-    throw std::invalid_argument("ResidualAnalyzer: the rest mesh has no triangle");
+    throw std::invalid_argument("ResidualAnalyser: the rest mesh has no triangle");
   }
   const double fps = 1.0 / scene.frame_time_s;
 
@@ -376,27 +386,27 @@ std::shared_ptr<const RecordingResidualFacts> CheckedFacts(
   if (facts == nullptr || facts->rest_mesh == nullptr || facts->scene == nullptr ||
       facts->object_masks == nullptr) {
     throw std::invalid_argument(
-        "ResidualAnalyzer: no facts (null, or without rest mesh, scene or object masks)");
+        "ResidualAnalyser: no facts (null, or without rest mesh, scene or object masks)");
   }
   return facts;
 }
 
 }  // namespace
 
-ResidualAnalyzer::ResidualAnalyzer(const PreparedRecording& prepared,
+ResidualAnalyser::ResidualAnalyser(const PreparedRecording& prepared,
                                    const ResidualOptions& options)
-    : ResidualAnalyzer(
+    : ResidualAnalyser(
           std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(prepared, options))) {}
 
-ResidualAnalyzer::ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene,
+ResidualAnalyser::ResidualAnalyser(const Mesh& rest_mesh, const Scene& scene,
                                    const std::vector<BitMask>& object_masks,
                                    std::vector<std::string> obstacle_names,
                                    std::string recording_name, const ResidualOptions& options)
-    : ResidualAnalyzer(std::make_shared<const RecordingResidualFacts>(
+    : ResidualAnalyser(std::make_shared<const RecordingResidualFacts>(
           ComputeResidualFacts(rest_mesh, scene, object_masks, std::move(obstacle_names),
                                std::move(recording_name), options))) {}
 
-ResidualAnalyzer::ResidualAnalyzer(std::shared_ptr<const RecordingResidualFacts> facts)
+ResidualAnalyser::ResidualAnalyser(std::shared_ptr<const RecordingResidualFacts> facts)
     : facts_(CheckedFacts(std::move(facts))),
       mesh_(*facts_->rest_mesh),
       scene_(*facts_->scene),
@@ -410,7 +420,7 @@ ResidualAnalyzer::ResidualAnalyzer(std::shared_ptr<const RecordingResidualFacts>
   previous_mesh_ = claimed_;
 }
 
-Vec2 ResidualAnalyzer::NearestBoundaryRestPoint(std::span<const Vec2> positions,
+Vec2 ResidualAnalyser::NearestBoundaryRestPoint(std::span<const Vec2> positions,
                                                 const Vec2& p) const {
   double best = std::numeric_limits<double>::infinity();
   Vec2 rest = facts_->rest_centroid_px;
@@ -429,7 +439,7 @@ Vec2 ResidualAnalyzer::NearestBoundaryRestPoint(std::span<const Vec2> positions,
   return rest;
 }
 
-void ResidualAnalyzer::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPhase phase) {
+void ResidualAnalyser::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPhase phase) {
   const int cx = std::clamp(
       static_cast<int>(std::floor((rest.x() - heat_map_.origin_px.x()) / heat_map_.cell_px)), 0,
       heat_map_.cols - 1);
@@ -468,7 +478,7 @@ void ResidualAnalyzer::AccumulateRestPixel(const Vec2& rest, bool missed, LoadPh
   }
 }
 
-void ResidualAnalyzer::MapResidualToRest(std::span<const Vec2> positions, const BitMask& mesh_mask,
+void ResidualAnalyser::MapResidualToRest(std::span<const Vec2> positions, const BitMask& mesh_mask,
                                          int frame) {
   const BitMask& object = object_masks_[frame];
   ResidualFrame& record = frames_.back();
@@ -554,17 +564,17 @@ void ResidualAnalyzer::MapResidualToRest(std::span<const Vec2> positions, const 
   }
 }
 
-void ResidualAnalyzer::AddFrame(int frame, std::span<const Vec2> positions,
+void ResidualAnalyser::AddFrame(int frame, std::span<const Vec2> positions,
                                 const BitMask& mesh_mask) {
   if (frame != static_cast<int>(frames_.size()) || frame >= scene_.num_frames) {
     throw std::invalid_argument(fmt::format(
-        "ResidualAnalyzer::AddFrame: frame {} out of order (expected {} of {})", frame,
+        "ResidualAnalyser::AddFrame: frame {} out of order (expected {} of {})", frame,
         frames_.size(), scene_.num_frames));
   }
   if (static_cast<int>(positions.size()) != mesh_.NumNodes() ||
       !mesh_mask.SameShape(object_masks_[0])) {
     throw std::invalid_argument(fmt::format(
-        "ResidualAnalyzer::AddFrame: {} positions for {} nodes, or a mesh mask of another shape",
+        "ResidualAnalyser::AddFrame: {} positions for {} nodes, or a mesh mask of another shape",
         positions.size(), mesh_.NumNodes()));
   }
   const BitMask& object = object_masks_[frame];
@@ -619,22 +629,22 @@ void ResidualAnalyzer::AddFrame(int frame, std::span<const Vec2> positions,
 ResidualAnalysis AnalyseResidual(const PreparedRecording& prepared,
                                  const SimulationOptions& simulation, const ModelParameters& params,
                                  const ResidualOptions& options, EvaluationResult* result) {
-  ResidualAnalyzer analyzer(prepared, options);
+  ResidualAnalyser analyser(prepared, options);
   Evaluator evaluator(prepared, simulation);
-  EvaluationResult evaluation = evaluator.Evaluate(params, analyzer);
+  EvaluationResult evaluation = evaluator.Evaluate(params, analyser);
   if (result != nullptr) *result = std::move(evaluation);
-  return analyzer.Finish();
+  return analyser.Finish();
 }
 
 ResidualAnalysis AnalyseResidual(const PreparedRecording& prepared,
                                  const SimulationOptions& simulation, const ModelDefinition& model,
                                  const ParameterValues& values, const ResidualOptions& options,
                                  EvaluationResult* result) {
-  ResidualAnalyzer analyzer(prepared, options);
+  ResidualAnalyser analyser(prepared, options);
   Evaluator evaluator(prepared, simulation, model);
-  EvaluationResult evaluation = evaluator.Evaluate(values, analyzer);
+  EvaluationResult evaluation = evaluator.Evaluate(values, analyser);
   if (result != nullptr) *result = std::move(evaluation);
-  return analyzer.Finish();
+  return analyser.Finish();
 }
 
 }  // namespace calib

@@ -3,6 +3,8 @@
 
 #include "calib/discovery/residual.h"
 
+#include "calib/evaluator/json_number.h"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -230,7 +232,7 @@ void VisitAnalysis(S& a, F& f) {
 
 // ---- encoding -------------------------------------------------------------
 
-json Encode(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json Encode(double v) { return JsonNumber(v); }
 json Encode(int v) { return v; }
 json Encode(int64_t v) { return v; }
 json Encode(bool v) { return v; }

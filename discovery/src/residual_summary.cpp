@@ -1,5 +1,5 @@
 // The residual analysis over time: phases, motion, oscillation,
-// persistence, the push and deformation (ResidualAnalyzer::Finish).
+// persistence, the push and deformation (ResidualAnalyser::Finish).
 
 #include "calib/discovery/residual.h"
 
@@ -195,7 +195,7 @@ const PhaseSummary* ResidualAnalysis::Phase(LoadPhase phase) const {
   return nullptr;
 }
 
-ResidualAnalysis ResidualAnalyzer::Finish() const {
+ResidualAnalysis ResidualAnalyser::Finish() const {
   ResidualAnalysis out;
   out.recording = facts_->recording_name;
   out.fps = 1.0 / scene_.frame_time_s;

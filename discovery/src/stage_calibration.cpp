@@ -303,9 +303,9 @@ void StageCalibrator::Measure(Fit* fit) const {
   for (int r = 0; r < n; ++r) {
     try {
       Evaluator evaluator(*recs_[r].prepared, o_.simulation, model);
-      ResidualAnalyzer analyzer(recs_[r].residual_facts);
-      fit->results[r] = evaluator.Evaluate(fit->values, analyzer);
-      fit->residuals[r] = analyzer.Finish();
+      ResidualAnalyser analyser(recs_[r].residual_facts);
+      fit->results[r] = evaluator.Evaluate(fit->values, analyser);
+      fit->residuals[r] = analyser.Finish();
       fit->residuals[r].recording = recs_[r].name;
     } catch (const std::exception& e) {
       errors[r] = e.what();

@@ -1,5 +1,6 @@
 #include "calib/evaluator/evaluation.h"
 
+#include "calib/core/enum_names.h"
 #include "calib/evaluator/contour.h"
 #include "calib/evaluator/mask_geometry.h"
 
@@ -99,9 +100,16 @@ PreparedRecording PrepareRecording(const Recording& recording, const Preparation
   return prepared;
 }
 
-std::string ToString(EvaluationStatus status) {
-  return status == EvaluationStatus::kOk ? "ok" : "failed";
-}
+namespace {
+
+constexpr auto kEvaluationStatusNames = std::to_array<EnumName<EvaluationStatus>>({
+    {EvaluationStatus::kOk, "ok"},
+    {EvaluationStatus::kFailed, "failed"},
+});
+
+}  // namespace
+
+std::string ToString(EvaluationStatus status) { return EnumToString(kEvaluationStatusNames, status); }
 
 Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions& options)
     : prepared_(prepared),

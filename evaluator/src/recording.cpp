@@ -463,4 +463,15 @@ Recording LoadRecording(const std::filesystem::path& folder) {
   return rec;
 }
 
+std::string RecordingDisplayName(const std::filesystem::path& folder) {
+  // Normalised as LoadRecording stores Recording::folder: "a/b/." and
+  // "a/b/c/.." are a/b/, and a trailing slash leaves an empty filename.
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(folder, ec);
+  fs::path normal = (ec ? folder : absolute).lexically_normal();
+  if (normal.filename().empty()) normal = normal.parent_path();
+  const std::string name = normal.filename().string();
+  return name.empty() ? folder.string() : name;
+}
+
 }  // namespace calib

@@ -1,5 +1,7 @@
 #include "calib/jobs/job_report.h"
 
+#include "calib/evaluator/recording.h"
+
 #include <fmt/format.h>
 
 #include <fstream>
@@ -13,7 +15,7 @@ std::string JobReport::Report() const {
   if (!best_params.empty()) text += fmt::format("best parameters: {}\n", best_params.string());
   for (const RecordingReport& r : recordings) {
     text += fmt::format("{} {}: score {}, mean IoU {:.4f}{}\n", r.role,
-                        r.recording.filename().string(), r.result.xor_sum, r.result.mean_iou,
+                        RecordingDisplayName(r.recording), r.result.xor_sum, r.result.mean_iou,
                         r.result.ok() ? "" : " (simulation failed: " + r.result.failure_reason + ")");
     if (!r.overlay_video.empty()) text += fmt::format("  overlay video: {}\n", r.overlay_video.string());
   }
@@ -60,8 +62,7 @@ JobReport WriteJobReport(const JobSpec& spec, ResultStore& store, int64_t job,
   if (has_best && options.simulate) {
     std::set<std::string> used;
     const auto simulate = [&](const std::string& role, const std::filesystem::path& recording) {
-      std::string name = recording.filename().string();
-      if (name.empty()) name = recording.parent_path().filename().string();
+      const std::string name = RecordingDisplayName(recording);
       std::string unique = name;
       for (int k = 2; used.count(role + "/" + unique); ++k) unique = fmt::format("{}_{}", name, k);
       used.insert(role + "/" + unique);

@@ -5,6 +5,7 @@
 #include "calib/jobs/job_spec.h"
 
 #include "calib/core/effects.h"
+#include "calib/core/enum_names.h"
 #include "calib/search/factory.h"
 
 #include <fmt/format.h>
@@ -35,20 +36,20 @@ const ModelCatalog& DefaultModelCatalog() {
   return catalog;
 }
 
-std::string ToString(FailureMode mode) {
-  switch (mode) {
-    case FailureMode::kPenalty: return "penalty";
-    case FailureMode::kRetry: return "retry";
-    case FailureMode::kAbort: return "abort";
-  }
-  return "penalty";
-}
+namespace {
+
+constexpr auto kFailureModeNames = std::to_array<EnumName<FailureMode>>({
+    {FailureMode::kPenalty, "penalty"},
+    {FailureMode::kRetry, "retry"},
+    {FailureMode::kAbort, "abort"},
+});
+
+}  // namespace
+
+std::string ToString(FailureMode mode) { return EnumToString(kFailureModeNames, mode); }
 
 FailureMode FailureModeFromString(const std::string& name) {
-  if (name == "penalty") return FailureMode::kPenalty;
-  if (name == "retry") return FailureMode::kRetry;
-  if (name == "abort") return FailureMode::kAbort;
-  throw std::invalid_argument("failure mode '" + name + "' is unknown; expected penalty, retry or abort");
+  return EnumFromString(kFailureModeNames, "failure mode", name);
 }
 
 std::vector<std::string> CalibrationRequest::SearchedNames() const {

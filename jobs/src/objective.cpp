@@ -1,5 +1,8 @@
 #include "calib/jobs/objective.h"
 
+#include "calib/core/enum_names.h"
+#include "calib/evaluator/recording.h"
+
 #include <fmt/format.h>
 
 #include <stdexcept>
@@ -7,15 +10,19 @@
 
 namespace calib {
 
-std::string ToString(CandidateStatus status) {
-  return status == CandidateStatus::kOk ? "ok" : "failed";
-}
+namespace {
+
+constexpr auto kCandidateStatusNames = std::to_array<EnumName<CandidateStatus>>({
+    {CandidateStatus::kOk, "ok"},
+    {CandidateStatus::kFailed, "failed"},
+});
+
+}  // namespace
+
+std::string ToString(CandidateStatus status) { return EnumToString(kCandidateStatusNames, status); }
 
 CandidateStatus CandidateStatusFromString(std::string_view text) {
-  if (text == "ok") return CandidateStatus::kOk;
-  if (text == "failed") return CandidateStatus::kFailed;
-  throw std::invalid_argument(
-      fmt::format("candidate status '{}' is unknown: expected ok or failed", text));
+  return EnumFromString(kCandidateStatusNames, "candidate status", text);
 }
 
 ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& results,
@@ -65,8 +72,7 @@ class RecordingWorker final : public ObjectiveWorker {
     evaluators_.reserve(recordings.size());
     for (const auto& prepared : recordings) {
       evaluators_.emplace_back(*prepared, options, model);
-      names_.push_back(prepared->recording.folder.filename().string());
-      if (names_.back().empty()) names_.back() = prepared->recording.folder.string();
+      names_.push_back(RecordingDisplayName(prepared->recording.folder));
       frames_total_ += prepared->scene.num_frames;
     }
     results_.reserve(recordings.size());

@@ -1,5 +1,7 @@
 #include "calib/jobs/progress.h"
 
+#include "calib/core/enum_names.h"
+
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <sys/ioctl.h>
@@ -11,23 +13,21 @@
 
 namespace calib {
 
-std::string ToString(ProgressMode mode) {
-  switch (mode) {
-    case ProgressMode::kAuto: return "auto";
-    case ProgressMode::kBar: return "bar";
-    case ProgressMode::kLog: return "log";
-    case ProgressMode::kNone: return "none";
-  }
-  return "?";
-}
+namespace {
+
+constexpr auto kProgressModeNames = std::to_array<EnumName<ProgressMode>>({
+    {ProgressMode::kAuto, "auto"},
+    {ProgressMode::kBar, "bar"},
+    {ProgressMode::kLog, "log"},
+    {ProgressMode::kNone, "none"},
+});
+
+}  // namespace
+
+std::string ToString(ProgressMode mode) { return EnumToString(kProgressModeNames, mode); }
 
 ProgressMode ProgressModeFromString(const std::string& text) {
-  for (ProgressMode m : {ProgressMode::kAuto, ProgressMode::kBar, ProgressMode::kLog,
-                         ProgressMode::kNone}) {
-    if (ToString(m) == text) return m;
-  }
-  throw std::invalid_argument(
-      fmt::format("progress mode '{}' is unknown: expected auto, bar, log or none", text));
+  return EnumFromString(kProgressModeNames, "progress mode", text);
 }
 
 std::string FormatDuration(double seconds) {

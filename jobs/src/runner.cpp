@@ -135,7 +135,7 @@ class Run {
     observer_->OnStart(Progress(), fmt::format("{} ({}), {} evaluations budget, {}",
                                                spec_.name, optimizer_.name(),
                                                spec_.budget.evaluations, evaluator_.Describe()));
-    Loop();
+    AskTellCycle();
     Finish();
     return summary_;
   }
@@ -202,7 +202,9 @@ class Run {
     return !stop_reason_.empty();
   }
 
-  void Loop() {
+  // The ask/tell cycle (top of runner.h), batch by batch, until the optimiser,
+  // the budget, the wall time, an interrupt or the failure policy stops it.
+  void AskTellCycle() {
     const int64_t abort_after = spec_.failure_policy.abort_after;
     if (abort_after > 0 && failed_ >= abort_after) {  // resumed after an abort
       status_ = JobStatus::kAborted;

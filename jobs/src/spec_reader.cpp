@@ -1,42 +1,8 @@
 #include "spec_reader.h"
 
 namespace calib::spec_reader {
-namespace {
 
-void SetFlowStyle(YAML::Node node) {
-  if (!node.IsMap() && !node.IsSequence()) return;
-  node.SetStyle(YAML::EmitterStyle::Flow);
-  for (auto it = node.begin(); it != node.end(); ++it) SetFlowStyle(node.IsMap() ? it->second : *it);
-}
-
-}  // namespace
-
-std::string Show(const YAML::Node& node) {
-  if (!node.IsDefined() || node.IsNull()) return "null";
-  if (node.IsScalar()) return "'" + node.Scalar() + "'";
-  YAML::Node copy = YAML::Clone(node);
-  SetFlowStyle(copy);
-  YAML::Emitter out;
-  out << copy;
-  std::string text = out.c_str();
-  if (text.size() > 160) text = text.substr(0, 157) + "...";
-  return text;
-}
-
-size_t EditDistance(const std::string& a, const std::string& b) {
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diag = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
+void RaiseJobSpecError(const std::string& message) { throw JobSpecError(message); }
 
 nlohmann::json YamlToJson(const YAML::Node& n) {
   switch (n.Type()) {

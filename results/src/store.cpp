@@ -1,5 +1,6 @@
 #include "calib/results/store.h"
 
+#include "calib/core/enum_names.h"
 #include "sqlite_db.h"
 
 #include <fmt/format.h>
@@ -90,26 +91,23 @@ nlohmann::json ParseStoredJson(const sqlite::Db& db, const std::string& text, co
 
 }  // namespace
 
-std::string ToString(JobStatus status) {
-  switch (status) {
-    case JobStatus::kCreated: return "created";
-    case JobStatus::kRunning: return "running";
-    case JobStatus::kStopped: return "stopped";
-    case JobStatus::kFinished: return "finished";
-    case JobStatus::kAborted: return "aborted";
-    case JobStatus::kFailed: return "failed";
-  }
-  return "created";
-}
+namespace {
+
+constexpr auto kJobStatusNames = std::to_array<EnumName<JobStatus>>({
+    {JobStatus::kCreated, "created"},
+    {JobStatus::kRunning, "running"},
+    {JobStatus::kStopped, "stopped"},
+    {JobStatus::kFinished, "finished"},
+    {JobStatus::kAborted, "aborted"},
+    {JobStatus::kFailed, "failed"},
+});
+
+}  // namespace
+
+std::string ToString(JobStatus status) { return EnumToString(kJobStatusNames, status); }
 
 JobStatus JobStatusFromString(const std::string& name) {
-  for (JobStatus s : {JobStatus::kCreated, JobStatus::kRunning, JobStatus::kStopped,
-                      JobStatus::kFinished, JobStatus::kAborted, JobStatus::kFailed}) {
-    if (ToString(s) == name) return s;
-  }
-  throw std::invalid_argument("job status '" + name +
-                              "' is unknown; expected created, running, stopped, finished, aborted "
-                              "or failed");
+  return EnumFromString(kJobStatusNames, "job status", name);
 }
 
 struct ResultStore::Impl {

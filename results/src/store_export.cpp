@@ -2,6 +2,7 @@
 
 #include "calib/results/store.h"
 
+#include "calib/evaluator/json_number.h"
 #include "csv_writer.h"
 
 #include <fmt/format.h>
@@ -20,8 +21,6 @@ using csv_writer::WriteRecord;
 
 // Shortest text that reads back to the same double; NaN: empty.
 std::string Number(double v) { return std::isnan(v) ? std::string() : fmt::format("{}", v); }
-
-nlohmann::json JsonNumber(double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); }
 
 std::string UtcTime(double unix_s) {
   if (unix_s <= 0.0) return "-";

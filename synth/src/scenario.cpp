@@ -1,5 +1,8 @@
 #include "calib/synth/scenario.h"
 
+#include "calib/core/enum_names.h"
+#include "calib/core/yaml_map_reader.h"
+
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
@@ -7,17 +10,23 @@
 #include <cmath>
 #include <fstream>
 #include <numbers>
-#include <set>
 #include <sstream>
 
 namespace calib::synth {
 
-std::string ToString(ScenarioKind kind) { return kind == ScenarioKind::kPush ? "push" : "hang"; }
+namespace {
+
+constexpr auto kScenarioKindNames = std::to_array<EnumName<ScenarioKind>>({
+    {ScenarioKind::kPush, "push"},
+    {ScenarioKind::kHang, "hang"},
+});
+
+}  // namespace
+
+std::string ToString(ScenarioKind kind) { return EnumToString(kScenarioKindNames, kind); }
 
 ScenarioKind ScenarioKindFromString(const std::string& text) {
-  if (text == "push") return ScenarioKind::kPush;
-  if (text == "hang") return ScenarioKind::kHang;
-  throw std::invalid_argument(fmt::format("scenario kind '{}' is unknown (push or hang)", text));
+  return EnumFromString(kScenarioKindNames, "scenario kind", text);
 }
 
 std::vector<std::string> Effects::EnabledNames() const {
@@ -67,133 +76,12 @@ Scenario DefaultScenario(ScenarioKind kind) {
 // ---------------------------------------------------------------- parsing
 namespace {
 
-std::string Show(const YAML::Node& node) {
-  if (node.IsScalar()) return "'" + node.Scalar() + "'";
-  YAML::Emitter out;
-  out << YAML::Flow << node;
-  return out.c_str();
-}
+// The project's YAML map reader (calib/core/yaml_map_reader.h) raising
+// ScenarioError; a key written without a value is present with nothing in it
+// (`plasticity:` turns the effect on with its defaults; `fps:` is an error).
+using yaml_reader::MapReader;
 
-// Reads the keys of one YAML map, remembering which it consumed so that the
-// rest can be reported as unknown. Every message names source and key path.
-class MapReader {
- public:
-  MapReader(const YAML::Node& node, std::string path, const std::string* source)
-      : node_(node), path_(std::move(path)), source_(source) {
-    if (!node_.IsMap()) Fail(path_.empty() ? "(top level)" : path_, node_, "a map of keys");
-  }
-
-  std::string KeyPath(const std::string& key) const {
-    return path_.empty() ? key : path_ + "." + key;
-  }
-
-  bool Has(const std::string& key) {
-    const YAML::Node child = node_[key];
-    if (!child.IsDefined()) return false;
-    seen_.insert(key);
-    return true;
-  }
-
-  MapReader Child(const std::string& key) {
-    seen_.insert(key);
-    return MapReader(node_[key], KeyPath(key), source_);
-  }
-  // A map child that may be written `{}` or left empty (`key:`).
-  MapReader OptionalChild(const std::string& key) {
-    seen_.insert(key);
-    const YAML::Node child = node_[key];
-    if (child.IsNull()) return MapReader(YAML::Node(YAML::NodeType::Map), KeyPath(key), source_);
-    return MapReader(child, KeyPath(key), source_);
-  }
-  MapReader Nested(const YAML::Node& node, const std::string& key_path) const {
-    return MapReader(node, key_path, source_);
-  }
-  YAML::Node Node(const std::string& key) {
-    seen_.insert(key);
-    return node_[key];
-  }
-
-  void Read(const std::string& key, double* value) {
-    if (!Has(key)) return;
-    *value = ToDouble(node_[key], KeyPath(key));
-  }
-  void Read(const std::string& key, std::optional<double>* value) {
-    if (!Has(key)) return;
-    *value = ToDouble(node_[key], KeyPath(key));
-  }
-  void Read(const std::string& key, int* value) {
-    if (!Has(key)) return;
-    *value = ToInt(node_[key], KeyPath(key));
-  }
-  void Read(const std::string& key, uint64_t* value) {
-    if (!Has(key)) return;
-    const YAML::Node n = node_[key];
-    try {
-      if (!n.IsScalar() || n.Scalar().empty() || n.Scalar()[0] == '-') throw YAML::Exception({}, "");
-      *value = n.as<uint64_t>();
-    } catch (const YAML::Exception&) {
-      Fail(KeyPath(key), n, "a non-negative integer");
-    }
-  }
-  void Read(const std::string& key, std::string* value) {
-    if (!Has(key)) return;
-    const YAML::Node n = node_[key];
-    if (!n.IsScalar()) Fail(KeyPath(key), n, "a string");
-    *value = n.Scalar();
-  }
-  void Read(const std::string& key, Vec2* value) {
-    if (!Has(key)) return;
-    const YAML::Node n = node_[key];
-    if (!n.IsSequence() || n.size() != 2) Fail(KeyPath(key), n, "a list of 2 numbers");
-    for (int i = 0; i < 2; ++i) (*value)[i] = ToDouble(n[i], fmt::format("{}[{}]", KeyPath(key), i));
-  }
-  void Read(const std::string& key, std::array<int, 3>* value) {
-    if (!Has(key)) return;
-    const YAML::Node n = node_[key];
-    if (!n.IsSequence() || n.size() != 3) Fail(KeyPath(key), n, "a list of 3 integers");
-    for (int i = 0; i < 3; ++i) (*value)[i] = ToInt(n[i], fmt::format("{}[{}]", KeyPath(key), i));
-  }
-
-  // Throws for any key not consumed.
-  void Finish() const {
-    for (const auto& kv : node_) {
-      const std::string key = kv.first.Scalar();
-      if (!seen_.count(key)) {
-        throw ScenarioError(fmt::format("{}: unknown key '{}' (value {})", *source_, KeyPath(key),
-                                        Show(kv.second)));
-      }
-    }
-  }
-
-  [[noreturn]] void Fail(const std::string& key_path, const YAML::Node& n,
-                         const std::string& expected) const {
-    throw ScenarioError(fmt::format("{}: {}: expected {}, found {}", *source_, key_path, expected,
-                                    n.IsDefined() && !n.IsNull() ? Show(n) : "nothing"));
-  }
-
- private:
-  double ToDouble(const YAML::Node& n, const std::string& key_path) const {
-    try {
-      if (!n.IsScalar()) throw YAML::Exception({}, "");
-      return n.as<double>();
-    } catch (const YAML::Exception&) {
-      Fail(key_path, n, "a number");
-    }
-  }
-  int ToInt(const YAML::Node& n, const std::string& key_path) const {
-    try {
-      if (!n.IsScalar()) throw YAML::Exception({}, "");
-      return n.as<int>();
-    } catch (const YAML::Exception&) {
-      Fail(key_path, n, "an integer");
-    }
-  }
-
-  YAML::Node node_;
-  std::string path_;
-  const std::string* source_;
-  std::set<std::string> seen_;
-};
+[[noreturn]] void RaiseScenarioError(const std::string& message) { throw ScenarioError(message); }
 
 void ReadObject(MapReader r, ObjectSpec* o) {
   r.Read("width_mm", &o->width_mm);
@@ -246,9 +134,9 @@ void ReadEffects(MapReader r, Effects* e) {
     c.Read("gradient", &u.gradient);
     c.Read("direction", &u.direction);
     if (!c.Has("regions")) return;
-    const YAML::Node list = c.Node("regions");
+    const YAML::Node list = c.Get("regions");
     const std::string path = c.KeyPath("regions");
-    if (!list.IsSequence()) c.Fail(path, list, "a list of regions");
+    if (!list.IsSequence()) c.Fail(path, list, "expected a list of regions");
     for (size_t i = 0; i < list.size(); ++i) {
       MapReader rr = c.Nested(list[i], fmt::format("{}[{}]", path, i));
       StiffnessRegionSpec region;
@@ -299,11 +187,11 @@ void ReadTop(MapReader& r, Scenario* s) {
   r.Read("notes", &s->notes);
   if (r.Has("object")) ReadObject(r.Child("object"), &s->object);
   if (r.Has("push")) {
-    if (s->kind != ScenarioKind::kPush) r.Fail(r.KeyPath("push"), r.Node("push"), "no push section for kind hang");
+    if (s->kind != ScenarioKind::kPush) r.Fail(r.KeyPath("push"), r.Get("push"), "no push section for kind hang");
     ReadPush(r.Child("push"), &s->push);
   }
   if (r.Has("hang")) {
-    if (s->kind != ScenarioKind::kHang) r.Fail(r.KeyPath("hang"), r.Node("hang"), "no hang section for kind push");
+    if (s->kind != ScenarioKind::kHang) r.Fail(r.KeyPath("hang"), r.Get("hang"), "no hang section for kind push");
     ReadHang(r.Child("hang"), &s->hang);
   }
   if (r.Has("material")) {
@@ -521,15 +409,15 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& source) 
     throw ScenarioError(fmt::format("{}: not valid YAML: {}", source, e.what()));
   }
   if (root.IsNull()) throw ScenarioError(fmt::format("{}: empty scenario file", source));
-  MapReader top(root, "", &source);
+  MapReader top(root, "", &source, &RaiseScenarioError, yaml_reader::EmptyValue::kPresent);
   ScenarioKind kind = ScenarioKind::kPush;
   if (top.Has("kind")) {
-    const YAML::Node n = top.Node("kind");
+    const YAML::Node n = top.Get("kind");
     try {
       if (!n.IsScalar()) throw std::invalid_argument("");
       kind = ScenarioKindFromString(n.Scalar());
     } catch (const std::invalid_argument&) {
-      top.Fail("kind", n, "push or hang");
+      top.Fail("kind", n, "must be push or hang");
     }
   }
   Scenario s = DefaultScenario(kind);

@@ -1,6 +1,7 @@
 #include "calib/synth/synthesize.h"
 
 #include "calib/core/mesher.h"
+#include "calib/evaluator/json_number.h"
 #include "calib/synth/renderer.h"
 #include "random.h"
 
@@ -112,8 +113,7 @@ nlohmann::json MaterialJson(const TruthMaterial& m) {
           {"stiffness_gradient_direction", Json(m.stiffness_gradient_direction)},
           {"stiffness_regions", regions},
           {"stiffening_coefficient", m.stiffening_coefficient},
-          {"plastic_yield_strain",
-           std::isfinite(m.plastic_yield_strain) ? nlohmann::json(m.plastic_yield_strain) : nlohmann::json(nullptr)},
+          {"plastic_yield_strain", JsonNumber(m.plastic_yield_strain)},
           {"plastic_flow_rate_per_s", m.plastic_flow_rate_per_s},
           {"viscous_fraction", m.viscous_fraction},
           {"viscous_relaxation_time_s", m.viscous_relaxation_time_s}};

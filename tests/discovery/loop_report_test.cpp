@@ -45,13 +45,13 @@ ResidualAnalysis ShiftAnalysis(const std::string& name, double shift, int frames
     for (int y = 100; y < 160; ++y) m.SetSpan(y, 100, 200);
     object.push_back(m);
   }
-  ResidualAnalyzer analyzer(mesh, scene, object, {}, name);
+  ResidualAnalyser analyser(mesh, scene, object, {}, name);
   std::vector<Vec2> positions = mesh.rest_positions;
   for (Vec2& p : positions) p.x() += shift;
   BitMask mesh_mask(320, 240);
   Rasterizer().RasterizeMesh(mesh, positions, mesh_mask);
-  for (int f = 0; f < frames; ++f) analyzer.AddFrame(f, positions, mesh_mask);
-  return analyzer.Finish();
+  for (int f = 0; f < frames; ++f) analyser.AddFrame(f, positions, mesh_mask);
+  return analyser.Finish();
 }
 
 RecordingScore Error(const std::string& recording, int64_t per_frame, int frames) {

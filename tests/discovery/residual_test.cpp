@@ -289,14 +289,14 @@ struct ShiftCase {
   std::vector<BitMask> object = {RectMask(320, 240, 100, 100, 200, 160)};
 };
 
-TEST(ResidualAnalyzer, ShiftedMeshSplitsIntoMissedAndExtraExactly) {
+TEST(ResidualAnalyser, ShiftedMeshSplitsIntoMissedAndExtraExactly) {
   ShiftCase c;
-  ResidualAnalyzer analyzer(c.mesh, c.scene, c.object, {}, "shift");
+  ResidualAnalyser analyser(c.mesh, c.scene, c.object, {}, "shift");
   const std::vector<Vec2> positions = Shifted(c.mesh.rest_positions, Vec2(10.0, 0.0));
   BitMask mesh_mask(320, 240);
   Rasterizer().RasterizeMesh(c.mesh, positions, mesh_mask);
-  analyzer.AddFrame(0, positions, mesh_mask);
-  const ResidualAnalysis a = analyzer.Finish();
+  analyser.AddFrame(0, positions, mesh_mask);
+  const ResidualAnalysis a = analyser.Finish();
 
   ASSERT_EQ(a.frames.size(), 1u);
   const ResidualFrame& f = a.frames[0];
@@ -348,7 +348,7 @@ TEST(ResidualAnalyzer, ShiftedMeshSplitsIntoMissedAndExtraExactly) {
   EXPECT_EQ(area, 6000.0);
 }
 
-TEST(ResidualAnalyzer, ObstacleBandsCountByDistance) {
+TEST(ResidualAnalyser, ObstacleBandsCountByDistance) {
   ShiftCase c;
   c.scene.num_obstacles = 1;
   // A disc of radius 5 centred 10 px right of the object's right edge: the
@@ -356,12 +356,12 @@ TEST(ResidualAnalyzer, ObstacleBandsCountByDistance) {
   c.scene.obstacle_discs = {Disc{Vec2(215.0, 130.0), 5.0}};
   ResidualOptions options;
   options.obstacle_bands_px = {5.0, 1000.0};
-  ResidualAnalyzer analyzer(c.mesh, c.scene, c.object, {"pencil"}, "bands", options);
+  ResidualAnalyser analyser(c.mesh, c.scene, c.object, {"pencil"}, "bands", options);
   const std::vector<Vec2> positions = Shifted(c.mesh.rest_positions, Vec2(10.0, 0.0));
   BitMask mesh_mask(320, 240);
   Rasterizer().RasterizeMesh(c.mesh, positions, mesh_mask);
-  analyzer.AddFrame(0, positions, mesh_mask);
-  const ResidualAnalysis a = analyzer.Finish();
+  analyser.AddFrame(0, positions, mesh_mask);
+  const ResidualAnalysis a = analyser.Finish();
   int64_t expected_near = 0;
   for (int y = 100; y < 160; ++y) {
     for (int x = 200; x < 210; ++x) {
@@ -377,15 +377,15 @@ TEST(ResidualAnalyzer, ObstacleBandsCountByDistance) {
   EXPECT_EQ(a.obstacle_names, std::vector<std::string>{"pencil"});
 }
 
-TEST(ResidualAnalyzer, RejectsFramesOutOfOrderAndBadShapes) {
+TEST(ResidualAnalyser, RejectsFramesOutOfOrderAndBadShapes) {
   ShiftCase c;
-  ResidualAnalyzer analyzer(c.mesh, c.scene, c.object, {}, "x");
+  ResidualAnalyser analyser(c.mesh, c.scene, c.object, {}, "x");
   BitMask mesh_mask(320, 240);
-  EXPECT_THROW(analyzer.AddFrame(1, c.mesh.rest_positions, mesh_mask), std::invalid_argument);
-  EXPECT_THROW(analyzer.AddFrame(0, c.mesh.rest_positions, BitMask(10, 10)), std::invalid_argument);
-  EXPECT_THROW(ResidualAnalyzer(c.mesh, StillScene(2, 30.0), c.object, {}, "x"),
+  EXPECT_THROW(analyser.AddFrame(1, c.mesh.rest_positions, mesh_mask), std::invalid_argument);
+  EXPECT_THROW(analyser.AddFrame(0, c.mesh.rest_positions, BitMask(10, 10)), std::invalid_argument);
+  EXPECT_THROW(ResidualAnalyser(c.mesh, StillScene(2, 30.0), c.object, {}, "x"),
                std::invalid_argument);
-  ResidualAnalyzer empty(c.mesh, c.scene, c.object, {}, "x");
+  ResidualAnalyser empty(c.mesh, c.scene, c.object, {}, "x");
   const ResidualAnalysis a = empty.Finish();
   EXPECT_EQ(a.frames_analysed, 0);
   EXPECT_EQ(a.xor_sum, 0);
@@ -408,15 +408,15 @@ struct SwingCase {
     }
   }
   ResidualAnalysis Analyse() const {
-    ResidualAnalyzer analyzer(mesh, scene, object, {}, "swing");
+    ResidualAnalyser analyser(mesh, scene, object, {}, "swing");
     BitMask mesh_mask(320, 200);
     Rasterizer().RasterizeMesh(mesh, mesh.rest_positions, mesh_mask);
-    for (int f = 0; f < scene.num_frames; ++f) analyzer.AddFrame(f, mesh.rest_positions, mesh_mask);
-    return analyzer.Finish();
+    for (int f = 0; f < scene.num_frames; ++f) analyser.AddFrame(f, mesh.rest_positions, mesh_mask);
+    return analyser.Finish();
   }
 };
 
-TEST(ResidualAnalyzer, SwingingObjectOscillatesAgainstAStillMesh) {
+TEST(ResidualAnalyser, SwingingObjectOscillatesAgainstAStillMesh) {
   const ResidualAnalysis a = SwingCase(0.25, 240.0, 600).Analyse();
   const Oscillation& o = a.oscillation.offset;
   ASSERT_TRUE(o.found);
@@ -487,15 +487,15 @@ struct DentCase {
   }
 
   ResidualAnalysis Analyse() const {
-    ResidualAnalyzer analyzer(mesh, scene, object, {"finger"}, "dent");
+    ResidualAnalyser analyser(mesh, scene, object, {"finger"}, "dent");
     BitMask mesh_mask(320, 240);
     Rasterizer().RasterizeMesh(mesh, mesh.rest_positions, mesh_mask);
-    for (int f = 0; f < scene.num_frames; ++f) analyzer.AddFrame(f, mesh.rest_positions, mesh_mask);
-    return analyzer.Finish();
+    for (int f = 0; f < scene.num_frames; ++f) analyser.AddFrame(f, mesh.rest_positions, mesh_mask);
+    return analyser.Finish();
   }
 };
 
-TEST(ResidualAnalyzer, ForceAgainstTravelSaysHowTheMaterialAnswersADeeperDent) {
+TEST(ResidualAnalyser, ForceAgainstTravelSaysHowTheMaterialAnswersADeeperDent) {
   // Force ~ travel (a linear material) and ~ travel^2 (stiffening), the
   // travel counted from the contact; the loading frames above a tenth of the
   // peak force (dent 2..20 px).
@@ -521,7 +521,7 @@ TEST(ResidualAnalyzer, ForceAgainstTravelSaysHowTheMaterialAnswersADeeperDent) {
   EXPECT_EQ(p.force_travel_frames, 0);
 }
 
-TEST(ResidualAnalyzer, PlasticDentPersistsAfterRelease) {
+TEST(ResidualAnalyser, PlasticDentPersistsAfterRelease) {
   const ResidualAnalysis a = DentCase(true, 0.0).Analyse();
   ASSERT_TRUE(a.push.has_push);
   EXPECT_NEAR(a.push.push_axis.y(), 1.0, 1e-6) << "pushed downwards";
@@ -549,7 +549,7 @@ TEST(ResidualAnalyzer, PlasticDentPersistsAfterRelease) {
   EXPECT_NEAR(a.push.hold_force_change, 0.0, 1e-9);
 }
 
-TEST(ResidualAnalyzer, ViscoelasticDentFadesWithItsTimeConstant) {
+TEST(ResidualAnalyser, ViscoelasticDentFadesWithItsTimeConstant) {
   const double tau = 0.4;
   const ResidualAnalysis a = DentCase(false, tau).Analyse();
   const PersistenceSummary& p = a.persistence;
@@ -562,7 +562,7 @@ TEST(ResidualAnalyzer, ViscoelasticDentFadesWithItsTimeConstant) {
   EXPECT_LT(p.recovery.tau_s, 1.2 * tau);
 }
 
-TEST(ResidualAnalyzer, JsonRoundTripsAndRunsAreDeterministic) {
+TEST(ResidualAnalyser, JsonRoundTripsAndRunsAreDeterministic) {
   const DentCase c(true, 0.0);
   const ResidualAnalysis a = c.Analyse();
   const ResidualAnalysis b = c.Analyse();
@@ -595,7 +595,7 @@ TEST(ResidualAnalyzer, JsonRoundTripsAndRunsAreDeterministic) {
 // Feeds the dent case's mesh drifting sideways and sagging, a little more
 // every frame (so that every part of the per-frame work has residual
 // pixels to map, inside and outside the simulated triangles).
-void FeedDriftingMesh(const DentCase& c, ResidualAnalyzer& analyzer) {
+void FeedDriftingMesh(const DentCase& c, ResidualAnalyser& analyser) {
   Rasterizer rasterizer;
   BitMask mesh_mask(320, 240);
   std::vector<Vec2> positions(c.mesh.rest_positions.size());
@@ -605,31 +605,31 @@ void FeedDriftingMesh(const DentCase& c, ResidualAnalyzer& analyzer) {
       positions[i] = Vec2(p.x() + 3.0 * std::sin(0.2 * f), p.y() + 0.002 * f * (p.y() - 100.0));
     }
     rasterizer.RasterizeMesh(c.mesh, positions, mesh_mask);
-    analyzer.AddFrame(f, positions, mesh_mask);
+    analyser.AddFrame(f, positions, mesh_mask);
   }
 }
 
-std::string AnalysisJson(ResidualAnalyzer& analyzer, const DentCase& c) {
-  FeedDriftingMesh(c, analyzer);
-  return ToJson(analyzer.Finish()).dump();
+std::string AnalysisJson(ResidualAnalyser& analyser, const DentCase& c) {
+  FeedDriftingMesh(c, analyser);
+  return ToJson(analyser.Finish()).dump();
 }
 
 TEST(RecordingResidualFacts, SharedFactsGiveExactlyTheAnalysisOfTheOldConstructors) {
   for (const bool plastic : {true, false}) {
     const DentCase c(plastic, 0.4);
-    ResidualAnalyzer own(c.mesh, c.scene, c.object, {"finger"}, "dent");
+    ResidualAnalyser own(c.mesh, c.scene, c.object, {"finger"}, "dent");
     const std::string expected = AnalysisJson(own, c);
 
     const auto facts = std::make_shared<const RecordingResidualFacts>(
         ComputeResidualFacts(c.mesh, c.scene, c.object, {"finger"}, "dent"));
     EXPECT_EQ(facts->phases, own.phases());
     EXPECT_TRUE(facts->push.has_push);
-    ResidualAnalyzer shared(facts);
+    ResidualAnalyser shared(facts);
     EXPECT_EQ(AnalysisJson(shared, c), expected) << "plastic " << plastic;
 
     // Two analysers on one facts object at once, on two threads: the same
     // analysis.
-    ResidualAnalyzer first(facts), second(facts);
+    ResidualAnalyser first(facts), second(facts);
     std::string json_first, json_second;
     std::thread a([&] { json_first = AnalysisJson(first, c); });
     std::thread b([&] { json_second = AnalysisJson(second, c); });
@@ -652,12 +652,12 @@ TEST(RecordingResidualFacts, FromAPreparedRecordingAsTheOldConstructor) {
   options.heat_map_cells = 40;
   options.obstacle_bands_px = {4.0, 12.0};
 
-  ResidualAnalyzer own(prepared, options);
+  ResidualAnalyser own(prepared, options);
   const auto facts =
       std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(prepared, options));
   EXPECT_EQ(facts->recording_name, "dent_01");
   EXPECT_EQ(facts->obstacle_names, std::vector<std::string>{"finger"});
-  ResidualAnalyzer shared(facts);
+  ResidualAnalyser shared(facts);
   const std::string expected = AnalysisJson(own, c);
   EXPECT_EQ(AnalysisJson(shared, c), expected);
   EXPECT_EQ(nlohmann::json::parse(expected)["obstacle_bands_px"].size(), 2u)
@@ -675,15 +675,15 @@ TEST(RecordingResidualFacts, RejectsWhatTheConstructorRejects) {
     return std::string("no exception");
   };
   EXPECT_EQ(message(StillScene(2, 30.0), {}),
-            "ResidualAnalyzer: 1 object masks for a scene of 2 frames");
-  EXPECT_EQ(message(c.scene, {"a"}), "ResidualAnalyzer: 1 obstacle names for 0 obstacles");
+            "ResidualAnalyser: 1 object masks for a scene of 2 frames");
+  EXPECT_EQ(message(c.scene, {"a"}), "ResidualAnalyser: 1 obstacle names for 0 obstacles");
   ResidualOptions bad;
   bad.heat_map_cells = 0;
   EXPECT_THROW(ComputeResidualFacts(c.mesh, c.scene, c.object, {}, "x", bad),
                std::invalid_argument);
-  EXPECT_THROW(ResidualAnalyzer(std::shared_ptr<const RecordingResidualFacts>()),
+  EXPECT_THROW(ResidualAnalyser(std::shared_ptr<const RecordingResidualFacts>()),
                std::invalid_argument);
-  EXPECT_THROW(ResidualAnalyzer(std::make_shared<const RecordingResidualFacts>()),
+  EXPECT_THROW(ResidualAnalyser(std::make_shared<const RecordingResidualFacts>()),
                std::invalid_argument);
 }
 

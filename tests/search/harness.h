@@ -1,6 +1,6 @@
 // Test harness for calib::search: standard functions (shifted so that no
 // optimum sits at the box centre, where a grid or DIRECT would find it by
-// construction) and a runner loop like the job runner's.
+// construction) and an ask/tell cycle like the job runner's.
 #pragma once
 
 #include <algorithm>

@@ -6,7 +6,7 @@
 //   OverlayCapture capture(prepared, analysis.worst_frames, out_dir, "base");
 //   evaluator.Evaluate(values, [&](int f, const Simulator& s, const BitMask& m,
 //                                  const FrameScore& sc) {
-//     analyzer(f, s, m, sc);  // the residual analysis in the same pass
+//     analyser(f, s, m, sc);  // the residual analysis in the same pass
 //     capture(f, s, m, sc);
 //   });
 //   report.overlays += capture.overlays();

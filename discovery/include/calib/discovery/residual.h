@@ -4,13 +4,13 @@
 // at a physical effect the model lacks (hypotheses.h turns them into ranked
 // effects).
 //
-// One pass. A ResidualAnalyzer is built from a recording's object masks, rest
+// One pass. A ResidualAnalyser is built from a recording's object masks, rest
 // mesh and scene; it is then fed every simulated frame in order, directly as
 // the on_frame callback of Evaluator::Evaluate:
 //
-//   ResidualAnalyzer analyzer(prepared);
-//   evaluator.Evaluate(params, analyzer);
-//   const ResidualAnalysis analysis = analyzer.Finish();
+//   ResidualAnalyser analyser(prepared);
+//   evaluator.Evaluate(params, analyser);
+//   const ResidualAnalysis analysis = analyser.Finish();
 //
 // What does not depend on the model (load phases, the object masks'
 // moments, change and deformation, the push, the rest shape's figures) is a
@@ -19,7 +19,7 @@
 //
 //   auto facts = std::make_shared<const RecordingResidualFacts>(
 //       ComputeResidualFacts(prepared));
-//   ResidualAnalyzer analyzer(facts);  // one per fit
+//   ResidualAnalyser analyser(facts);  // one per fit
 //
 // Per frame it splits the XOR of object and mesh into missed pixels (object,
 // not mesh) and extra pixels (mesh, not object); counts them in distance
@@ -399,7 +399,7 @@ ResidualAnalysis ResidualAnalysisFromJson(const nlohmann::json& doc);
 /// What the residual analysis knows about a recording before the pass: all
 /// that depends on the recording and the options but not on the model or
 /// its parameters. Computed once per recording (ComputeResidualFacts) and
-/// shared read-only by any number of ResidualAnalyzers.
+/// shared read-only by any number of ResidualAnalysers.
 struct RecordingResidualFacts {
   /// The parts it was computed from; not owned: they must outlive the facts
   /// and every analyser built on them.
@@ -449,22 +449,22 @@ RecordingResidualFacts ComputeResidualFacts(const PreparedRecording& prepared,
                                             const ResidualOptions& options = {});
 
 /// The one-pass analyser. See the top of this file.
-class ResidualAnalyzer {
+class ResidualAnalyser {
  public:
   /// From a prepared recording (which must outlive the analyser); the
   /// recording's name is its folder's name. Computes the facts itself.
-  explicit ResidualAnalyzer(const PreparedRecording& prepared, const ResidualOptions& options = {});
+  explicit ResidualAnalyser(const PreparedRecording& prepared, const ResidualOptions& options = {});
   /// From the parts (which must outlive the analyser); see
   /// ComputeResidualFacts (the facts are computed here, the same exceptions
   /// thrown).
-  ResidualAnalyzer(const Mesh& rest_mesh, const Scene& scene, const std::vector<BitMask>& object_masks,
+  ResidualAnalyser(const Mesh& rest_mesh, const Scene& scene, const std::vector<BitMask>& object_masks,
                    std::vector<std::string> obstacle_names, std::string recording_name,
                    const ResidualOptions& options = {});
   /// From facts computed before (shared, read only; the parts they point to
   /// must outlive the analyser), with the options they were computed with.
   /// Gives exactly the analysis the constructors above give. Throws
   /// std::invalid_argument for null facts.
-  explicit ResidualAnalyzer(std::shared_ptr<const RecordingResidualFacts> facts);
+  explicit ResidualAnalyser(std::shared_ptr<const RecordingResidualFacts> facts);
 
   /// Frame `frame` (0, 1, 2, ... in order; throws std::invalid_argument
   /// otherwise) with the mesh at `positions` (#N, frame pixels) and its

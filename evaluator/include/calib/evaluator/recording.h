@@ -74,4 +74,11 @@ struct Recording {
 /// obstacle, a roi or clamp outside the frame.
 Recording LoadRecording(const std::filesystem::path& folder);
 
+/// The name a recording goes by in reports, logs and output folders: the
+/// name of its folder, whichever way the folder is written ("push_centre" for
+/// examples/push_centre, examples/push_centre/ or /data/push_centre/.); the
+/// path as given when it names no folder ("/"). Pass Recording::folder or a
+/// folder as a job spec lists it.
+std::string RecordingDisplayName(const std::filesystem::path& folder);
+
 }  // namespace calib

@@ -1,5 +1,5 @@
 #pragma once
-// The calibration loop: ask a batch from the optimiser, evaluate it in
+// The ask/tell cycle: ask a batch from the optimiser, evaluate it in
 // parallel (BatchEvaluator), record every evaluation in the store, tell the
 // optimiser, checkpoint, repeat until the optimiser is done, the budget is
 // used, the wall time is up, the job is interrupted or the failure policy
