@@ -1,6 +1,7 @@
 #include "calib/core/simulator.h"
 
 #include "calib/core/constraints.h"
+#include "calib/core/implicit_step.h"
 
 #include <fmt/format.h>
 
@@ -129,6 +130,9 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
                            (static_cast<size_t>(mesh.NumNodes()) + boundary_edges));
   }
 }
+
+Simulator::Simulator(Simulator&&) = default;
+Simulator::~Simulator() = default;
 
 void Simulator::Reset(const ModelParameters& params) {
   if (!effects_.empty()) {

@@ -11,7 +11,7 @@ namespace calib {
 enum class IntegratorKind {
   kFirstOrder,  ///< paper eq. 10: x <- x + h F / m (velocity proportional to force)
   kVerlet,      ///< paper eq. 8: x <- 2x - x_prev + h^2 F / m (inertia)
-  /// Eq. 10 implicit in the springs and the edge damping (implicit_step.h):
+  /// Eq. 10 implicit in the springs and the edge damping (ImplicitFirstOrderStep):
   /// (m / h + K0 + k_d / h D0) dx = F; stable at any stiffness.
   kImplicitFirstOrder,
 };

@@ -11,19 +11,22 @@
 // the substep is the base model's, bit for bit.
 
 #include "calib/core/effects.h"
-#include "calib/core/implicit_step.h"
 #include "calib/core/initial_motion.h"
 #include "calib/core/integrator.h"
 #include "calib/core/model.h"
 #include "calib/core/model_definition.h"
 #include "calib/core/scene.h"
+#include "calib/core/step_contact.h"
 
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 namespace calib {
+
+class ImplicitFirstOrderStep;  // the implicit step, complete in simulator.cpp
 
 struct SimulationOptions {
   int substeps = 10;  ///< integration steps per video frame
@@ -62,6 +65,10 @@ class Simulator {
   /// effect, whatever options.integrator says.
   Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptions& options,
             const ModelDefinition& model);
+
+  // Out of line: the implicit step is an incomplete type here.
+  Simulator(Simulator&&);
+  ~Simulator();
 
   /// Back to frame 0 (the mesh's rest shape, at rest) with new parameters. Only for
   /// a simulator without effects (else std::logic_error: use the overload

@@ -1,0 +1,115 @@
+#pragma once
+// Which obstacle contacts the implicit first-order step (implicit_step.h)
+// holds inside its solve, and the step they make.
+//
+// Obstacles: a stiff mesh's step is long where an obstacle holds it (the
+// springs would undo a finger's dent in one step), so projecting the nodes
+// out after the step makes them chatter by the dent's depth every substep
+// and throws the contact's friction between sticking and sliding. Step
+// therefore takes the contacts as constraints of the solve: each keeps a
+// node, or a point of a boundary edge, on the obstacle's side of its
+// tangent line (normal . dx >= gap, linearised at the step's start), and
+// with friction mu it also moves along the tangent with the obstacle while
+// the tangential force stays within mu times the normal one (Coulomb),
+// else slides against a force of mu times it. The multipliers are found
+// by an active-set iteration on the contacts' small dense system, whose
+// columns come from cached solves with the factor (per coordinate, reused
+// for the whole candidate): the step stays one solve plus a few vector
+// sums. What the linearisation leaves the simulator's projections put
+// right.
+
+#include "calib/core/step_contact.h"
+#include "calib/core/types.h"
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace calib {
+
+/// The coordinates of `contact`'s point along `direction`: visit(unknown,
+/// weight x direction component) for each with an unknown
+/// (unknown_of_coordinate >= 0: clamped nodes skipped) and a nonzero
+/// factor.
+template <class Visit>
+void ForEachContactUnknown(const StepContact& contact, const Vec2& direction,
+                           std::span<const int> unknown_of_coordinate, Visit&& visit) {
+  for (int q = 0; q < 2; ++q) {
+    const int node = contact.nodes[q];
+    if (node < 0) continue;
+    for (int d = 0; d < 2; ++d) {
+      const int k = unknown_of_coordinate[2 * node + d];
+      const double g = contact.weights[q] * direction[d];
+      if (k >= 0 && g != 0.0) visit(k, g);
+    }
+  }
+}
+
+/// What the active set needs of the step: how a force at a contact point
+/// changes the step.
+class ContactResponses {
+ public:
+  /// The change of the step (over the unknowns) made by a unit force along
+  /// `direction` at `contact`'s point: linear in the force.
+  virtual void ResponseOf(const StepContact& contact, const Vec2& direction,
+                          Eigen::Ref<Eigen::VectorXd> out) = 0;
+
+ protected:
+  ~ContactResponses() = default;
+};
+
+/// The active set of one step's contacts, with the buffers its solve
+/// reuses.
+class ContactActiveSet {
+ public:
+  /// Contacts held by one step at most; others are left to the projections.
+  static constexpr int kMaxActiveContacts = 32;
+
+  /// For a step over `num_unknowns` unknowns, coordinate c's being
+  /// unknown_of_coordinate[c] (-1: none), which must outlive this.
+  ContactActiveSet(std::span<const int> unknown_of_coordinate, int num_unknowns);
+
+  /// The step that keeps the `contacts` (the candidates: those the free
+  /// step `free_step` would break become active, at most
+  /// kMaxActiveContacts) with Coulomb friction coefficient `friction`
+  /// (>= 0), the active contacts' forces acting through `responses`. Valid
+  /// until the next call.
+  const Eigen::VectorXd& Solve(std::span<const StepContact> contacts, double friction,
+                               const Eigen::VectorXd& free_step, ContactResponses& responses);
+
+ private:
+  struct ActiveContact {
+    int contact = 0;
+    bool stick = false;
+    double slip_sign = 0.0;  // sliding: the friction force's sign along the tangent
+    double normal_force = 0.0, tangent_force = 0.0;
+  };
+  std::span<const int> unknown_of_coordinate_;
+  std::vector<ActiveContact> active_;
+  std::vector<int> active_of_contact_;  // index into active_, or -1
+  std::vector<uint8_t> excluded_;       // contacts dropped for a singular system
+  // The step's response to a unit force along each active contact's normal
+  // and tangent (m rows, kMaxActiveContacts columns).
+  Eigen::MatrixXd normal_response_, tangent_response_;
+  Eigen::VectorXd step_, column_;  // the constrained step; a scratch column
+  // The active contacts' system (fixed capacity: no allocation).
+  static constexpr int kMaxRows = 2 * kMaxActiveContacts;
+  using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxRows, kMaxRows>;
+  using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxRows, 1>;
+  SmallMatrix system_;
+  SmallVector system_rhs_, forces_;
+  Eigen::FullPivLU<SmallMatrix> lu_;
+  std::array<int, kMaxActiveContacts> tangent_row_{};
+  // Solves for the active contacts' forces and sets step_ (free_step plus
+  // their responses); false when the system is singular.
+  bool SolveActive(std::span<const StepContact> contacts, double friction,
+                   const Eigen::VectorXd& free_step);
+  // The motion of `contact`'s point along `direction` under the step dx.
+  double Along(const StepContact& contact, const Vec2& direction, const Eigen::VectorXd& dx) const;
+};
+
+}  // namespace calib
