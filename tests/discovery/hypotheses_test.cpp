@@ -4,6 +4,7 @@
 // model are left out; merging weighs recordings by applicability; the
 // result is deterministic; JSON round-trips and a bad document names the key.
 
+#include "calib/core/effects.h"
 #include "calib/discovery/hypotheses.h"
 
 #include <gtest/gtest.h>
@@ -71,6 +72,12 @@ const Evidence& FindEvidence(const Hypothesis& h, const std::string& signature) 
                                [&](const Evidence& e) { return e.signature == signature; });
   EXPECT_NE(it, h.evidence.end()) << h.effect << ": " << signature;
   return *it;
+}
+
+TEST(Hypotheses, EveryEffectOfTheCatalogueHasOneSignatureInItsOrder) {
+  std::vector<std::string> catalogue;
+  for (const EffectInfo& info : EffectTermCatalogue()) catalogue.push_back(info.name);
+  EXPECT_EQ(TracedEffects(), catalogue);
 }
 
 TEST(Hypotheses, EveryTracedEffectIsScoredOnceAndRankedByConfidence) {

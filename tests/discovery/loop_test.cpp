@@ -173,6 +173,24 @@ TEST(Loop, RestartsKeepTheBestOfIndependentSearches) {
             base.restart_training_xor[0]);
 }
 
+TEST(Loop, StageRequestsCarryTheOptimisersStartAndBudget) {
+  SearchScales scales;
+  const std::vector<ParameterSetting> settings = StageParameterSettings({"viscoelastic"}, scales);
+  const int dimension = SearchSpace(settings).dimension();
+  const std::vector<double> x0(dimension, 0.25);
+  const CalibrationRequest cmaes = StageRequest("s", settings, "cmaes", &x0, 0.3, 40, 9);
+  EXPECT_EQ(cmaes.name, "s");
+  EXPECT_EQ(cmaes.seed, 9u);
+  EXPECT_EQ(cmaes.budget.evaluations, 40);
+  EXPECT_EQ(cmaes.optimizer.settings["x0"], nlohmann::json(x0));
+  EXPECT_EQ(cmaes.optimizer.settings["initial_sigma"], 0.3);
+  EXPECT_EQ(cmaes.optimizer.settings["max_evals"], 40);
+  EXPECT_EQ(cmaes.checkpoint.every_evaluations, 40);
+  const CalibrationRequest genetic = StageRequest("s", settings, "genetic", &x0, 0.3, 40, 9);
+  EXPECT_FALSE(genetic.optimizer.settings.contains("x0")) << "genetic takes no start";
+  for (const CalibrationRequest& r : {cmaes, genetic}) EXPECT_NO_THROW(MakeRequestOptimizer(r));
+}
+
 TEST(Loop, RestartsStartAtSeededPointsInsideTheBox) {
   EXPECT_EQ(RestartStart(3, 7, 0), std::vector<double>(3, 0.5)) << "restart 0: the centre";
   const std::vector<double> a = RestartStart(6, 7, 1);
@@ -213,10 +231,25 @@ TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
   const LoopResult one = RunLoop(options);
   options.out_dir = testing::ScratchDir("loop_determinism_2");
   options.threads = 2;
+  // Every calibration and every re-scoring on the held-out recording goes
+  // through the batch evaluator the options make (as an MPI run would).
+  int training_objectives = 0, held_out_objectives = 0;
+  options.make_evaluator = [&](const Objective& objective, int threads) {
+    const auto* recordings = dynamic_cast<const RecordingObjective*>(&objective);
+    EXPECT_NE(recordings, nullptr);
+    if (recordings != nullptr && recordings->recordings().size() == 1) {
+      const std::string name = recordings->recordings()[0]->recording.folder.filename().string();
+      ++(name == "push_offset" ? held_out_objectives : training_objectives);
+    }
+    return std::unique_ptr<BatchEvaluator>(std::make_unique<ThreadBatchEvaluator>(objective, threads));
+  };
   const LoopResult two = RunLoop(options);
   ASSERT_GE(one.report.stages.size(), 2u);  // an effect was calibrated too
   EXPECT_EQ(Numbers(one.report), Numbers(two.report));
   EXPECT_EQ(one.table, two.table);
+  EXPECT_GE(training_objectives, 3) << "the base search and the effect's two phases";
+  EXPECT_GE(held_out_objectives, 2) << "equally good fits and sensitivity nudges, per model";
+  options.make_evaluator = nullptr;
   options.seed = 2;
   options.out_dir = testing::ScratchDir("loop_determinism_3");
   const LoopResult other = RunLoop(options);

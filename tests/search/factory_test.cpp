@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "calib/search/factory.h"
 #include "harness.h"
 
 namespace calib::search {
@@ -33,6 +34,39 @@ TEST(Factory, EveryListedNameBuildsWithDefaults) {
       EXPECT_EQ(opt.name(), name);
       EXPECT_FALSE(opt.Ask(1).empty()) << name;
     }) << name;
+  }
+}
+
+TEST(Factory, BudgetsAreFilledInUnderEachOptimisersOwnKey) {
+  EXPECT_EQ(BudgetSetting("cmaes"), "max_evals");
+  EXPECT_EQ(BudgetSetting("grid"), "max_evals");
+  EXPECT_EQ(BudgetSetting("nlopt:BOBYQA"), "maxeval");
+  EXPECT_EQ(BudgetSetting("genetic"), "");  // population x generations
+  EXPECT_EQ(WithBudget("cmaes", nullptr, 40), (nlohmann::json{{"max_evals", 40}}));
+  EXPECT_EQ(WithBudget("nlopt:SBPLX", {{"maxeval", 7}}, 40), (nlohmann::json{{"maxeval", 7}}))
+      << "a budget the settings give is kept";
+  EXPECT_EQ(WithBudget("genetic", nullptr, 40), nlohmann::json::object());
+  // Every filled-in setting is one the optimiser accepts.
+  for (const std::string& name : OptimizerNames()) {
+    EXPECT_NO_THROW(MakeOptimizer(name, WithBudget(name, nullptr, 40), testing::Box(2, 0, 1), 1))
+        << name;
+  }
+}
+
+TEST(Factory, StartSettingsStartWhereAskedWithTheStepAsked) {
+  const std::vector<double> x0 = {0.2, 0.7, 0.4};
+  const nlohmann::json cmaes = StartSettings("cmaes", 3, &x0, 0.25, 100);
+  EXPECT_EQ(cmaes["x0"], nlohmann::json(x0));
+  EXPECT_EQ(cmaes["initial_sigma"], 0.25);
+  EXPECT_EQ(cmaes["population"], 8) << "at least 8 candidates a generation";
+  EXPECT_EQ(StartSettings("cmaes", 3, nullptr, 0.3, 5)["population"], 5) << "never over the budget";
+  EXPECT_FALSE(StartSettings("cmaes", 3, nullptr, 0.3, 100).contains("x0"));
+  EXPECT_EQ(StartSettings("nlopt:BOBYQA", 3, &x0, 0.3, 100), (nlohmann::json{{"x0", x0}}));
+  EXPECT_EQ(StartSettings("random", 3, &x0, 0.3, 100), nlohmann::json::object());
+  for (const std::string& name : OptimizerNames()) {
+    const nlohmann::json settings = WithBudget(name, StartSettings(name, 3, &x0, 0.3, 50), 50);
+    CheckedOptimizer opt = MakeOptimizer(name, settings, testing::Box(3, 0, 1), 1);
+    EXPECT_FALSE(opt.Ask(1).empty()) << name;
   }
 }
 
