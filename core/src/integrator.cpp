@@ -15,6 +15,8 @@ constexpr auto kIntegratorNames = std::to_array<EnumName<IntegratorKind>>({
 
 std::string ToString(IntegratorKind kind) { return EnumToString(kIntegratorNames, kind); }
 
+std::string IntegratorKindNames() { return EnumNameList(kIntegratorNames); }
+
 IntegratorKind IntegratorKindFromString(const std::string& name) {
   return EnumFromString(kIntegratorNames, "integrator", name);
 }

@@ -95,7 +95,7 @@ void ReadModel(MapReader r, ModelSpec* m, const ModelCatalog& catalog) {
     try {
       sim.integrator = IntegratorKindFromString(name);
     } catch (const std::invalid_argument&) {
-      r.Fail(r.KeyPath("integrator"), n, "must be first_order or verlet");
+      r.Fail(r.KeyPath("integrator"), n, "must be " + IntegratorKindNames());
     }
   }
   r.Read("constraint_iterations", &sim.constraint_iterations);

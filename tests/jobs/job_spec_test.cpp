@@ -311,7 +311,7 @@ TEST(JobSpec, OtherRulesAreNamed) {
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["contact_friction"] = -0.5; }),
                   "model.contact_friction = '-0.5': must be >= 0");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["integrator"] = "rk4"; }),
-                  "model.integrator = 'rk4': must be first_order or verlet");
+                  "model.integrator = 'rk4': must be first_order, verlet or implicit_first_order");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["effects"].push_back("magnetism"); }),
                   "model.effects[0] = 'magnetism': unknown model effect");
   EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["failure_policy"]["mode"] = "ignore"; }),

@@ -19,6 +19,8 @@ enum class IntegratorKind {
 std::string ToString(IntegratorKind kind);
 /// Parses "first_order", "verlet" or "implicit_first_order"; throws std::invalid_argument naming the value.
 IntegratorKind IntegratorKindFromString(const std::string& name);
+/// Every integrator's name, as messages list them ("a, b or c").
+std::string IntegratorKindNames();
 
 /// First order: x += (h / m) f for nodes with inverse_weight 1 (clamped: 0).
 void StepFirstOrder(double h_over_m, std::span<const Vec2> f, std::span<const double> inverse_weight,
