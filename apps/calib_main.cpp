@@ -88,6 +88,7 @@ int main(int argc, char** argv) {
       "calib: calibrates a 2D mass-spring model of a deformable object against a video.\n"
       "Recordings follow shared/spec/dataset.md."};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("calib ") + CALIB_VERSION);
   // Messages, progress and errors on stderr; results on stdout.
   spdlog::set_default_logger(spdlog::stderr_color_mt("calib"));
   spdlog::set_pattern("%^[%l]%$ %v");
@@ -146,7 +147,14 @@ int main(int argc, char** argv) {
   const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best
   const auto loop_cli = calib::cli::AddLoopSubcommand(app);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0; every other parse error is bad input,
+    // exit status 2 like the rest (CLI11's own codes are 100 and up).
+    const int status = app.exit(e);
+    return status == static_cast<int>(CLI::ExitCodes::Success) ? 0 : 2;
+  }
 
   try {
     if (const auto status = calib::cli::RunChosenJobSubcommand(*job_cli, argc, argv)) {
@@ -170,6 +178,7 @@ int main(int argc, char** argv) {
         fmt::print("overlay video: {}\n", summary.overlay_video.string());
       }
       for (const auto& png : summary.overlay_pngs) fmt::print("overlay: {}\n", png.string());
+      return summary.result.ok() ? 0 : 3;  // as `calib score`
     } else if (*score) {
       const auto result = calib::RunScore(recording, params, settings);
       PrintResult(result);

@@ -29,6 +29,43 @@ const fs::path kExamples = fs::path(CALIB_SOURCE_DIR) / "examples";
 #define EXPECT_HAS(text, part) \
   EXPECT_NE(std::string(text).find(part), std::string::npos) << "output: " << (text)
 
+// Bad command lines are bad input: exit status 2 with CLI11's message,
+// not CLI11's own codes (100 and up); --help and --version exit 0.
+TEST(Cli, ParseErrorsExitWithStatus2) {
+  const fs::path dir = testing::ScratchDir("cli_parse_errors");
+  const auto unknown = testing::RunProcess(
+      {kCalib, "score", (kExamples / "push_centre").string(), "--params", "p.json", "--no-such-option"},
+      dir);
+  EXPECT_EQ(unknown.exit_code, 2) << unknown.err;
+  EXPECT_HAS(unknown.err, "--no-such-option");
+  const auto missing = testing::RunProcess({kCalib, "score"}, dir);
+  EXPECT_EQ(missing.exit_code, 2) << missing.err;
+  EXPECT_HAS(missing.err, "recording");
+  const auto bad_value = testing::RunProcess({kCalib, "run", "job.yaml", "--threads", "many"}, dir);
+  EXPECT_EQ(bad_value.exit_code, 2) << bad_value.err;
+  EXPECT_HAS(bad_value.err, "--threads");
+  const auto none = testing::RunProcess({kCalib}, dir);
+  EXPECT_EQ(none.exit_code, 2) << none.err;
+  EXPECT_EQ(testing::RunProcess({kCalib, "--help"}, dir).exit_code, 0);
+  const auto version = testing::RunProcess({kCalib, "--version"}, dir);
+  EXPECT_EQ(version.exit_code, 0) << version.err;
+  EXPECT_HAS(version.out, "calib ");
+}
+
+// `calib simulate` says a failed simulation as `calib score` does: exit 3.
+TEST(SimulateCli, AFailedSimulationExitsWithStatus3) {
+  const fs::path dir = testing::ScratchDir("simulate_cli_failed");
+  // Far too stiff for the explicit first-order step: it blows up.
+  const fs::path params = dir / "stiff.json";
+  std::ofstream(params) << R"({"k_D": 1e9, "k_d": 2.0, "k_A": 200.0, "k_phi": 50.0, "mass": 0.2, "tau": 0.3})";
+  const auto r = testing::RunProcess(
+      {kCalib, "simulate", (kExamples / "push_centre").string(), "--params", params.string(), "--out",
+       (dir / "out").string(), "--no-video", "--cache-dir", (dir / "cache").string()},
+      dir);
+  EXPECT_EQ(r.exit_code, 3) << r.out << r.err;
+  EXPECT_HAS(r.out, "status: failed at frame");
+}
+
 TEST(CompareCli, ARecordingAgainstItselfDiffersNowhere) {
   const fs::path dir = testing::ScratchDir("compare_cli_self");
   const auto r = testing::RunProcess(
