@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -113,10 +114,30 @@ ParameterValues LoadParameterFile(const std::filesystem::path& path,
   std::ifstream in(path);
   if (!in) throw ParameterError(fmt::format("{}: cannot open parameter file", source));
   nlohmann::json doc;
+  // JSON readers keep one of two equal keys silently: the parser's callback
+  // sees every key of the top-level object and names a repeated one.
+  std::vector<std::string> top_keys;
+  std::string duplicate;
+  const nlohmann::json::parser_callback_t note_keys =
+      [&](int depth, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        if (event == nlohmann::json::parse_event_t::key && depth == 1) {
+          const std::string key = parsed.get<std::string>();
+          if (duplicate.empty() &&
+              std::find(top_keys.begin(), top_keys.end(), key) != top_keys.end()) {
+            duplicate = key;
+          }
+          top_keys.push_back(key);
+        }
+        return true;
+      };
   try {
-    doc = nlohmann::json::parse(in);
+    doc = nlohmann::json::parse(in, note_keys);
   } catch (const nlohmann::json::exception& e) {
     throw ParameterError(fmt::format("{}: invalid JSON: {}", source, e.what()));
+  }
+  if (!duplicate.empty()) {
+    throw ParameterError(
+        fmt::format("{}: parameter '{}' appears more than once", source, duplicate));
   }
   if (!doc.is_object()) {
     throw ParameterError(fmt::format("{}: expected a JSON object of name -> number", source));

@@ -51,6 +51,17 @@ MapReader::MapReader(YAML::Node node, std::string path, const std::string* sourc
                      EmptyValue empty)
     : node_(std::move(node)), path_(std::move(path)), source_(source), raise_(raise), empty_(empty) {
   if (!node_.IsMap()) Fail(path_.empty() ? "(top level)" : path_, node_, "must be a map of keys");
+  // YAML (and JSON) readers keep one of two equal keys silently; a
+  // duplicate is almost always an edit gone wrong, so it is an error.
+  std::vector<std::string> seen;
+  for (const auto& entry : node_) {
+    if (!entry.first.IsScalar()) continue;
+    const std::string& key = entry.first.Scalar();
+    if (std::find(seen.begin(), seen.end(), key) != seen.end()) {
+      Fail(KeyPath(key), entry.second, "the key appears more than once in its map");
+    }
+    seen.push_back(key);
+  }
 }
 
 YAML::Node MapReader::Get(const std::string& key) {

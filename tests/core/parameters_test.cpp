@@ -68,6 +68,14 @@ TEST(Parameters, UnknownNameIsNamed) {
   EXPECT_NE(msg.find("unknown parameter 'k_X'"), std::string::npos) << msg;
 }
 
+TEST(Parameters, ARepeatedNameIsNamed) {
+  const auto dir = calib::testing::ScratchDir("params");
+  const auto msg = ErrorOf(WriteFile(
+      dir, R"({"k_D": 1, "k_d": 0, "k_A": 1, "k_phi": 1, "mass": 1, "tau": 0, "k_D": 2})"));
+  EXPECT_NE(msg.find("parameter 'k_D' appears more than once"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("params.json"), std::string::npos) << msg;
+}
+
 TEST(Parameters, NonNumberIsNamed) {
   const auto dir = calib::testing::ScratchDir("params");
   const auto msg = ErrorOf(WriteFile(

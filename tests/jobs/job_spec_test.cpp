@@ -269,6 +269,25 @@ TEST(JobSpec, UnknownAndDuplicateParametersAreNamed) {
   EXPECT_CONTAINS(s, "parameters[1].scale = 'cubic': must be linear or log");
 }
 
+// YAML keeps one of two equal keys silently; the spec names the repeat.
+TEST(JobSpec, ARepeatedKeyIsNamed) {
+  const fs::path dir = MakeJobFolder("job_spec_duplicate_key");
+  auto error_of = [&](const std::string& text) {
+    try {
+      ParseJobSpec(text, "job.yaml", dir);
+    } catch (const JobSpecError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_CONTAINS(error_of(std::string(kValidSpec) + "seed: 7\n"),
+                  "job.yaml: seed = '7': the key appears more than once");
+  std::string nested(kValidSpec);
+  nested.replace(nested.find("budget: {evaluations: 120,"), 26,
+                 "budget: {evaluations: 120, evaluations: 5,");
+  EXPECT_CONTAINS(error_of(nested), "budget.evaluations = '5': the key appears more than once");
+}
+
 TEST(JobSpec, UnknownOptimiserIsNamed) {
   const std::string m = ErrorOf([](YAML::Node& r) { r["optimizer"]["name"] = "simplex"; });
   EXPECT_CONTAINS(m, "optimizer.name = 'simplex': unknown optimiser");

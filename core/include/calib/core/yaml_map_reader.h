@@ -48,7 +48,8 @@ class MapReader {
  public:
   /// `path`: the map's key path ("" at the top level); `source`: the file
   /// name messages start with (must outlive the reader). Raises "must be a
-  /// map of keys" when `node` is not a map.
+  /// map of keys" when `node` is not a map, and names a key that appears
+  /// twice in it.
   MapReader(YAML::Node node, std::string path, const std::string* source, Raise raise,
             EmptyValue empty = EmptyValue::kAbsent);
 
