@@ -26,7 +26,7 @@ struct JobCli {
   bool no_cache = false;
   bool no_report = false;
   bool no_video = false;
-  int threads = 0;
+  std::optional<int> threads;
   double wall_time_s = 0.0;
   std::filesystem::path out;
   std::filesystem::path csv;
@@ -38,8 +38,9 @@ namespace {
 void AddRunOptions(CLI::App* cmd, JobCli* cli) {
   cmd->add_option("job", cli->spec_path, "job spec file (YAML or JSON; docs/job_spec.md)")
       ->required();
-  cmd->add_option("--threads", cli->threads, "OpenMP threads (default: the spec's `threads`)")
-      ->check(CLI::PositiveNumber);
+  cmd->add_option("--threads", cli->threads,
+                  "OpenMP threads, 0: all cores (default: the spec's `threads`)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--store", cli->store, "results store (default: the spec's results.store)");
   cmd->add_option("--wall-time", cli->wall_time_s,
                   "stop (resumably) after this many seconds (default: the spec's budget.wall_time_s)")

@@ -38,8 +38,18 @@ FinishedCandidate EvaluateWithRetries(ObjectiveWorker& worker, const PendingCand
 }
 
 int ResolveThreadCount(int requested) {
-  if (requested >= 1) return requested;
-  return std::max(1, omp_get_num_procs());
+  const int cores = std::max(1, omp_get_num_procs());
+  if (requested < 0) {
+    throw std::invalid_argument(fmt::format("threads = {}: must be >= 0 (0: all cores)", requested));
+  }
+  if (requested > kMaxThreadsPerCore * cores) {
+    // More would only oversubscribe the cores; far more exhausts memory or
+    // the OpenMP runtime's thread limit mid-job.
+    throw std::invalid_argument(fmt::format(
+        "threads = {}: more than {} times the {} cores of this machine", requested,
+        kMaxThreadsPerCore, cores));
+  }
+  return requested == 0 ? cores : requested;
 }
 
 ThreadBatchEvaluator::ThreadBatchEvaluator(const Objective& objective, int threads,

@@ -159,7 +159,7 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
   } else {
     objective = make_objective(spec, preparation);
     out.objective = objective->Describe();
-    const int threads = ResolveThreadCount(options.threads > 0 ? options.threads : spec.threads);
+    const int threads = ResolveThreadCount(options.threads.value_or(spec.threads));
     evaluator = std::make_unique<ThreadBatchEvaluator>(*objective, threads);
   }
 

@@ -118,6 +118,24 @@ INSTANTIATE_TEST_SUITE_P(
 
 // The real objective: simulating and scoring the bundled centre-push
 // recording (coarse mesh, few substeps, to be quick).
+// 0 means all cores; a count far past the cores is refused by name before
+// any work (it would exhaust memory or the OpenMP runtime mid-job).
+TEST(RunnerThreads, ZeroIsAllCoresAndTooManyIsNamed) {
+  const int cores = ResolveThreadCount(0);
+  EXPECT_GE(cores, 1);
+  EXPECT_EQ(ResolveThreadCount(1), 1);
+  EXPECT_EQ(ResolveThreadCount(kMaxThreadsPerCore * cores), kMaxThreadsPerCore * cores);
+  for (const int bad : {-1, kMaxThreadsPerCore * cores + 1, 100000}) {
+    try {
+      ResolveThreadCount(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(fmt::format("threads = {}:", bad)), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(RunnerDeterminismOnARecording, SameHistoryAtOneTwoAndFourThreads) {
   const fs::path dir = testing::ScratchDir("runner_recording");
   JobSpec spec = testing::SyntheticJobSpec(

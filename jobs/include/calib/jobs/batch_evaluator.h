@@ -87,8 +87,12 @@ class ThreadBatchEvaluator final : public BatchEvaluator {
   std::string label_prefix_;
 };
 
+/// Threads a job or loop may ask for at most, per core.
+inline constexpr int kMaxThreadsPerCore = 4;
+
 /// The number of threads to use for `requested` (0: all cores, as OpenMP
-/// reports them).
+/// reports them). Throws std::invalid_argument naming the value when it is
+/// negative or more than kMaxThreadsPerCore times the cores.
 int ResolveThreadCount(int requested);
 
 }  // namespace calib

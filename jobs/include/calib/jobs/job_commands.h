@@ -45,8 +45,9 @@ std::unique_ptr<Objective> MakeRecordingObjective(const JobSpec& spec,
 enum class JobStart { kRun, kResume };
 
 struct JobCommandOptions {
-  /// >= 1: OpenMP threads, overriding the spec's `threads`; 0: the spec's.
-  int threads = 0;
+  /// OpenMP threads, overriding the spec's `threads` (0: all cores); unset:
+  /// the spec's.
+  std::optional<int> threads;
   /// Overrides the spec's results.store when set.
   std::optional<std::filesystem::path> store;
   /// Overrides the spec's budget.wall_time_s for this invocation when set.
