@@ -17,6 +17,13 @@
 namespace calib {
 namespace {
 
+// The largest frame rate a recording may state (high-speed cameras reach
+// 1e4-1e5 fps).
+constexpr double kMaxFps = 1e6;
+// How far from the frame, in frame sizes, an obstacle coordinate or radius
+// may lie.
+constexpr double kMaxObstacleReachFrames = 100.0;
+
 using nlohmann::json;
 namespace fs = std::filesystem;
 
@@ -148,6 +155,11 @@ void ReadMetadata(const fs::path& file, Recording* rec, bool* has_roi) {
 
   rec->fps = ReadNumber(file, "fps", Require(file, doc, "", "fps"));
   if (rec->fps <= 0.0) Fail(file, fmt::format("key 'fps' = {} must be > 0", rec->fps));
+  if (rec->fps > kMaxFps) {
+    // Past any camera's rate: the frame time would underflow the
+    // simulation's substeps and be blamed on every candidate.
+    Fail(file, fmt::format("key 'fps' = {} must be <= {}", rec->fps, kMaxFps));
+  }
 
   const json& object = Require(file, doc, "", "object");
   if (!object.is_object()) {
@@ -402,6 +414,17 @@ void ReadTrack(const fs::path& file, Recording* rec) {
       if (disc.radius_px < 0.0) {
         Fail(file, fmt::format("{}: radius {} must be >= 0", CellName(r, table.header[o.col[2]]),
                                disc.radius_px));
+      }
+      // A disc far outside the frame cannot touch the object: a coordinate
+      // there is a unit or export error, not a position.
+      const double reach = kMaxObstacleReachFrames * std::max(rec->frame_width, rec->frame_height);
+      for (int k = 0; k < 3; ++k) {
+        const double v = k == 0 ? disc.centre.x() : k == 1 ? disc.centre.y() : disc.radius_px;
+        if (std::abs(v) > reach) {
+          Fail(file, fmt::format("{}: {} lies more than {} frame sizes ({} px) from the frame",
+                                 CellName(r, table.header[o.col[k]]), v, kMaxObstacleReachFrames,
+                                 reach));
+        }
       }
     }
     rec->obstacles.push_back(std::move(track));

@@ -370,6 +370,23 @@ TEST(RecordingError, NonPositiveFpsNamesValue) {
   }
 }
 
+TEST(RecordingError, AbsurdFpsIsNamedAsTheRecordings) {
+  RecordingFixture fx("rec");
+  fx.doc["fps"] = 1e308;
+  const std::string message = fx.LoadError();
+  EXPECT_HAS(message, fx.JsonPath());
+  EXPECT_HAS(message, "key 'fps' = 1e+308 must be <=");
+}
+
+TEST(RecordingError, AnObstacleFarOutsideTheFrameNamesRowAndColumn) {
+  RecordingFixture fx("rec");
+  fx.track = Replace(fx.track, ",30.25,3,0.3", ",1e308,3,0.3");
+  const std::string message = fx.LoadError();
+  EXPECT_HAS(message, fx.TrackPath());
+  EXPECT_HAS(message, "row 3 (line 5), column 'pencil_y'");
+  EXPECT_HAS(message, "from the frame");
+}
+
 TEST(RecordingError, FrameColumnOutOfOrderNamesRow) {
   RecordingFixture fx("rec");
   fx.track = Replace(fx.track, "\n3,", "\n4,");
