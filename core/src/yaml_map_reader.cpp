@@ -76,7 +76,18 @@ bool MapReader::Has(const std::string& key) {
 
 YAML::Node MapReader::Require(const std::string& key, const std::string& rule) {
   YAML::Node n = Get(key);
-  if (!n.IsDefined() || n.IsNull()) Missing(KeyPath(key), rule);
+  if (!n.IsDefined() || n.IsNull()) {
+    // A key of the map that is nearly this one is a typo of it: say so
+    // rather than only that the key is missing.
+    for (const auto& kv : node_) {
+      if (!kv.first.IsScalar()) continue;
+      const std::string& found = kv.first.Scalar();
+      if (found != key && EditDistance(found, key) <= 2) {
+        Missing(KeyPath(key), fmt::format("{} (found '{}': a misspelling?)", rule, KeyPath(found)));
+      }
+    }
+    Missing(KeyPath(key), rule);
+  }
   return n;
 }
 

@@ -288,6 +288,16 @@ TEST(JobSpec, ARepeatedKeyIsNamed) {
   EXPECT_CONTAINS(error_of(nested), "budget.evaluations = '5': the key appears more than once");
 }
 
+// A misspelt required key is named as such, not only as the key missing.
+TEST(JobSpec, AMisspeltRequiredKeyIsNamed) {
+  const std::string m = ErrorOf([](YAML::Node& r) {
+    r["budjet"] = r["budget"];
+    r.remove("budget");
+  });
+  EXPECT_CONTAINS(m, "job.yaml: budget: missing");
+  EXPECT_CONTAINS(m, "found 'budjet': a misspelling?");
+}
+
 TEST(JobSpec, UnknownOptimiserIsNamed) {
   const std::string m = ErrorOf([](YAML::Node& r) { r["optimizer"]["name"] = "simplex"; });
   EXPECT_CONTAINS(m, "optimizer.name = 'simplex': unknown optimiser");
