@@ -167,11 +167,9 @@ class EffectTerm {
   double Energy(std::span<const Vec2> x) const;
 };
 
-/// Every effect there is, in a fixed order: inertia, table_friction,
-/// plasticity, uneven_stiffness, strain_stiffening, viscoelastic,
-/// push_relaxation (the names evaluator/hypotheses.h traces).
-/// (Not named EffectCatalogue: hypotheses.h has that name for the list of
-/// names alone.)
+/// Every effect there is, in the fixed order of kEntries in
+/// effect_catalogue.cpp (docs/effects.md lists them; discovery's
+/// hypotheses.h traces each by its name).
 const std::vector<EffectInfo>& EffectTermCatalogue();
 
 /// Names of EffectTermCatalogue() joined by ", " (for messages).

@@ -3,15 +3,10 @@
 // ranked hypotheses about the physical effect the model lacks, each with
 // its evidence stated in numbers.
 //
-// The effects traced (the names of core's EffectCatalogue(), effects.h):
-//   inertia            second-order dynamics with gravity
-//   table_friction     friction of the object with the table
-//   plasticity         the rest shape drifts under large strain
-//   uneven_stiffness   a stiffness field over the rest shape
-//   strain_stiffening  nonlinear springs
-//   viscoelastic       relaxation with a time constant
-//   push_relaxation    a replacement for the translation term whose push
-//                      keeps acting after the finger stops
+// Every effect of core's EffectTermCatalogue() (effects.h) has one
+// residual signature here (kSignatures in hypotheses.cpp, in the
+// catalogue's order); docs/effects.md describes the effects and
+// docs/loop.md their signatures.
 //
 // Every score is a product of smooth ramps of dimensionless signature
 // values (shares, ratios, correlations, residual thickness in pixels), so
