@@ -16,6 +16,7 @@ packages=(
   libcsv-dev
   libopenmpi-dev openmpi-bin
   gnuplot-nox
+  python3 python3-yaml
 )
 
 missing=()
