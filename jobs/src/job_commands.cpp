@@ -4,6 +4,10 @@
 #include "calib/jobs/mpi_evaluator.h"
 
 #include <fmt/format.h>
+
+#include <fstream>
+
+#include <unistd.h>
 #include <spdlog/spdlog.h>
 
 #include <csignal>
@@ -132,8 +136,33 @@ std::unique_ptr<Objective> MakeRecordingObjective(const JobSpec& spec,
                                               ModelDefinition{spec.model.effects});
 }
 
+namespace {
+
+// The report is written when the job stops: a folder it cannot be written
+// to is found now, not after every evaluation has run.
+void CheckWritableFolder(const JobSpec& spec, const std::filesystem::path& dir) {
+  auto fail = [&](const std::string& why) {
+    throw JobSpecError(
+        fmt::format("{}: results.out_dir = '{}': {}", spec.source, dir.string(), why));
+  };
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) fail("cannot create the folder: " + ec.message());
+  const std::filesystem::path probe = dir / fmt::format(".calib-write-check-{}", ::getpid());
+  {
+    std::ofstream out(probe);
+    if (!out || !(out << "ok") || !out.flush()) fail("cannot write files there");
+  }
+  std::filesystem::remove(probe, ec);
+}
+
+}  // namespace
+
 JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOptions& options) {
   JobCommandResult out;
+  if (options.write_report && !(options.mpi != nullptr && options.mpi->rank() != 0)) {
+    CheckWritableFolder(spec, spec.results.out_dir);
+  }
   const PreparationOptions preparation = Preparation(spec, options);
   const ObjectiveFactory make_objective =
       options.make_objective ? options.make_objective : ObjectiveFactory(MakeRecordingObjective);

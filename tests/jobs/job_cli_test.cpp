@@ -365,6 +365,21 @@ TEST_F(JobCli, BadJobSpecIsNamedByFileFieldAndValue) {
     EXPECT_CONTAINS(r.err, c.message);
     EXPECT_FALSE(fs::exists(dir / "bad_job.sqlite")) << "nothing starts before the spec is valid";
   }
+  // A report folder that cannot be made is named before any evaluation.
+  std::ofstream(dir / "a_file") << "not a folder";
+  std::string text = good;
+  const std::string results = "results: {store: bad_job.sqlite, out_dir: bad_job_out}";
+  ASSERT_NE(text.find(results), std::string::npos);
+  text.replace(text.find(results), results.size(),
+               "results: {store: unwritable.sqlite, out_dir: a_file/report}");
+  const fs::path spec = dir / "unwritable.yaml";
+  std::ofstream(spec) << text;
+  const testing::ProcessResult unwritable =
+      testing::RunProcess({kCalib, "run", spec.string(), "--progress", "none"}, dir);
+  EXPECT_EQ(unwritable.exit_code, 2) << unwritable.err;
+  EXPECT_CONTAINS(unwritable.err, "results.out_dir = '" + (dir / "a_file/report").string() + "'");
+  EXPECT_CONTAINS(unwritable.err, "cannot create the folder");
+  EXPECT_FALSE(fs::exists(dir / "unwritable.sqlite")) << "nothing evaluated or stored";
   const testing::ProcessResult missing =
       testing::RunProcess({kCalib, "run", (dir / "absent.yaml").string()}, dir);
   EXPECT_EQ(missing.exit_code, 2);
