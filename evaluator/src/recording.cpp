@@ -23,6 +23,8 @@ constexpr double kMaxFps = 1e6;
 // How far from the frame, in frame sizes, an obstacle coordinate or radius
 // may lie.
 constexpr double kMaxObstacleReachFrames = 100.0;
+// The largest track.csv read (a row per frame: hours of video are a few MB).
+constexpr uintmax_t kMaxTrackBytes = 256u << 20;
 
 using nlohmann::json;
 namespace fs = std::filesystem;
@@ -31,6 +33,20 @@ constexpr const char* kFormat = "sponge-recording/1";
 
 [[noreturn]] void Fail(const fs::path& file, const std::string& what) {
   throw RecordingError(fmt::format("{}: {}", file.string(), what));
+}
+
+// `relative` (the value of key `key` of recording.json `file`) resolved in
+// the recording's folder; a path that is absolute or leaves the folder
+// (dataset.md: paths relative to the folder) is an error naming the key.
+fs::path InsideFolder(const fs::path& file, const std::string& key, const fs::path& folder,
+                      const std::string& relative) {
+  const fs::path given(relative);
+  const fs::path normal = given.lexically_normal();
+  if (given.is_absolute() || normal.empty() || *normal.begin() == "..") {
+    Fail(file, fmt::format("key '{}' = '{}': must be a path inside the recording folder", key,
+                           relative));
+  }
+  return (folder / normal).lexically_normal();
 }
 
 std::string TypeName(const json& v) { return v.type_name(); }
@@ -150,8 +166,8 @@ void ReadMetadata(const fs::path& file, Recording* rec, bool* has_roi) {
   const std::string track = ReadString(file, "track", Require(file, doc, "", "track"));
   if (video.empty()) Fail(file, "key 'video' is empty");
   if (track.empty()) Fail(file, "key 'track' is empty");
-  rec->video_path = (rec->folder / video).lexically_normal();
-  rec->track_path = (rec->folder / track).lexically_normal();
+  rec->video_path = InsideFolder(file, "video", rec->folder, video);
+  rec->track_path = InsideFolder(file, "track", rec->folder, track);
 
   rec->fps = ReadNumber(file, "fps", Require(file, doc, "", "fps"));
   if (rec->fps <= 0.0) Fail(file, fmt::format("key 'fps' = {} must be > 0", rec->fps));
@@ -282,6 +298,14 @@ std::string Trim(const std::string& s) {
 }
 
 CsvTable ReadCsv(const fs::path& file) {
+  // Read whole: only a regular file of bounded size (not a device or a
+  // pipe that never ends).
+  std::error_code ec;
+  if (fs::exists(file, ec) && !fs::is_regular_file(file, ec)) Fail(file, "not a regular file");
+  const uintmax_t size = fs::file_size(file, ec);
+  if (!ec && size > kMaxTrackBytes) {
+    Fail(file, fmt::format("{} bytes: a track may hold at most {} bytes", size, kMaxTrackBytes));
+  }
   std::ifstream in(file, std::ios::binary);
   if (!in) Fail(file, "cannot open file");
   std::stringstream buffer;

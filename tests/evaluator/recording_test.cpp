@@ -3,6 +3,8 @@
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
+
+#include <sys/stat.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -385,6 +387,35 @@ TEST(RecordingError, AnObstacleFarOutsideTheFrameNamesRowAndColumn) {
   EXPECT_HAS(message, fx.TrackPath());
   EXPECT_HAS(message, "row 3 (line 5), column 'pencil_y'");
   EXPECT_HAS(message, "from the frame");
+}
+
+TEST(RecordingError, APathOutsideTheFolderIsNamed) {
+  for (const std::string bad : {"/etc/passwd", "../../video.mp4", "sub/../../video.mp4"}) {
+    for (const std::string key : {"video", "track"}) {
+      RecordingFixture fx("rec");
+      fx.doc[key] = bad;
+      const std::string message = fx.LoadError();
+      EXPECT_HAS(message, fx.JsonPath());
+      EXPECT_HAS(message, "key '" + key + "' = '" + bad + "': must be a path inside the recording folder");
+    }
+  }
+}
+
+TEST(RecordingError, ATrackThatIsNoRegularFileIsNamed) {
+  RecordingFixture fx("rec");
+  fx.doc["track"] = "endless";
+  const std::string message = [&] {
+    fx.Write();
+    EXPECT_EQ(::mkfifo((fx.dir / "endless").c_str(), 0600), 0);
+    try {
+      LoadRecording(fx.dir);
+    } catch (const RecordingError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(nothing thrown)");
+  }();
+  EXPECT_HAS(message, (fx.dir / "endless").string());
+  EXPECT_HAS(message, "not a regular file");
 }
 
 TEST(RecordingError, FrameColumnOutOfOrderNamesRow) {
