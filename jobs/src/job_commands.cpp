@@ -21,8 +21,9 @@ volatile std::sig_atomic_t g_interrupted = 0;
 
 extern "C" void OnStopSignal(int) { g_interrupted = 1; }
 
-// SIGINT / SIGTERM set a flag the runner polls between candidates; the
-// handler resets itself, so a second SIGINT ends the process at once.
+// SIGINT, SIGTERM and SIGHUP (a closed terminal or SSH session) set a flag
+// the runner polls between candidates: the job stops resumably. The handler
+// resets itself, so a second signal ends the process at once.
 class ScopedStopSignals {
  public:
   ScopedStopSignals() {
@@ -33,16 +34,19 @@ class ScopedStopSignals {
     action.sa_flags = SA_RESETHAND;
     sigaction(SIGINT, &action, &old_int_);
     sigaction(SIGTERM, &action, &old_term_);
+    sigaction(SIGHUP, &action, &old_hup_);
   }
   ~ScopedStopSignals() {
     sigaction(SIGINT, &old_int_, nullptr);
     sigaction(SIGTERM, &old_term_, nullptr);
+    sigaction(SIGHUP, &old_hup_, nullptr);
   }
   static bool Interrupted() { return g_interrupted != 0; }
 
  private:
   struct sigaction old_int_ {};
   struct sigaction old_term_ {};
+  struct sigaction old_hup_ {};
 };
 
 PreparationOptions Preparation(const JobSpec& spec, const JobCommandOptions& options) {

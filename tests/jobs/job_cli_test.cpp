@@ -210,7 +210,8 @@ TEST_F(JobCli, SigkillAtRandomMomentsAndResumeGivesTheUninterruptedHistory) {
 TEST_F(JobCli, CorruptedCheckpointIsReportedAndTheJobFallsBackPastIt) {
   const fs::path dir = testing::ScratchDir("job_cli_corrupt");
   const fs::path db = dir / "r.sqlite";
-  // Stop it (resumably) part-way: SIGTERM once a few checkpoints exist.
+  // Stop it (resumably) part-way once a few checkpoints exist, by SIGHUP
+  // (a closed terminal), which stops a job as SIGTERM and SIGINT do.
   {
     testing::ChildProcess child(
         Args({"run", spec_->string(), "--store", db.string(), "--no-report", "--progress", "log"}),
@@ -223,7 +224,7 @@ TEST_F(JobCli, CorruptedCheckpointIsReportedAndTheJobFallsBackPastIt) {
       ResultStore store(db, options);
       if (store.CheckpointCount(store.FindJob("cli_job")->id) >= 2) break;
     }
-    child.Kill(SIGTERM);
+    child.Kill(SIGHUP);
     const testing::ProcessResult r = child.Wait();
     if (r.exit_code == 0) GTEST_SKIP() << "the job finished before it could be stopped";
     ASSERT_EQ(r.exit_code, 4) << "stopped resumably:\n" << r.out << r.err;
