@@ -250,6 +250,8 @@ TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
   EXPECT_GE(training_objectives, 3) << "the base search and the effect's two phases";
   EXPECT_GE(held_out_objectives, 2) << "equally good fits and sensitivity nudges, per model";
   options.make_evaluator = nullptr;
+  // Another seed, other base values: the base calibration alone shows it.
+  options.max_effects = 0;
   options.seed = 2;
   options.out_dir = testing::ScratchDir("loop_determinism_3");
   const LoopResult other = RunLoop(options);
