@@ -120,23 +120,23 @@ using yaml_reader::MapReader;
 
 [[noreturn]] void RaiseScenarioError(const std::string& message) { throw ScenarioError(message); }
 
-// Reads `key` as one of the names in `names` into *value when the map has it.
-template <typename E, std::size_t N>
-void ReadEnum(MapReader& r, const std::string& key, E* value, const EnumNames<E, N>& names) {
+// Reads `key` as a name `from_string` knows (throwing std::invalid_argument
+// with the names it knows otherwise) into *value when the map has it.
+template <typename E>
+void ReadEnum(MapReader& r, const std::string& key, E* value, E (*from_string)(const std::string&)) {
   if (!r.Has(key)) return;
   const YAML::Node n = r.Get(key);
-  for (const EnumName<E>& name : names) {
-    if (n.IsScalar() && n.Scalar() == name.name) {
-      *value = name.value;
-      return;
-    }
+  try {
+    if (!n.IsScalar()) throw std::invalid_argument("expected a name");
+    *value = from_string(n.Scalar());
+  } catch (const std::invalid_argument& e) {
+    r.Fail(r.KeyPath(key), n, e.what());
   }
-  r.Fail(r.KeyPath(key), n, "must be " + EnumNameList(names));
 }
 
 void ReadObject(MapReader r, ObjectSpec* o) {
   const bool shape_named = r.Has("shape");
-  ReadEnum(r, "shape", &o->shape, kObjectShapeNames);
+  ReadEnum(r, "shape", &o->shape, &ObjectShapeFromString);
   r.Read("width_mm", &o->width_mm);
   r.Read("height_mm", &o->height_mm);
   r.Read("waist_mm", &o->waist_mm);
@@ -144,7 +144,7 @@ void ReadObject(MapReader r, ObjectSpec* o) {
   if (r.Has("notch")) {
     MapReader c = r.OptionalChild("notch");
     NotchSpec notch;
-    ReadEnum(c, "side", &notch.side, kObjectSideNames);
+    ReadEnum(c, "side", &notch.side, &ObjectSideFromString);
     c.Read("position_fraction", &notch.position_fraction);
     c.Read("width_mm", &notch.width_mm);
     c.Read("depth_mm", &notch.depth_mm);
@@ -154,7 +154,7 @@ void ReadObject(MapReader r, ObjectSpec* o) {
   if (r.Has("cutout")) {
     MapReader c = r.OptionalChild("cutout");
     CutoutSpec cutout;
-    ReadEnum(c, "corner", &cutout.corner, kObjectCornerNames);
+    ReadEnum(c, "corner", &cutout.corner, &ObjectCornerFromString);
     c.Read("width_mm", &cutout.width_mm);
     c.Read("height_mm", &cutout.height_mm);
     c.Finish();
@@ -275,6 +275,7 @@ void ReadTop(MapReader& r, Scenario* s) {
   }
   if (r.Has("material")) {
     MapReader m = r.Child("material");
+    ReadEnum(m, "law", &s->material.law, &MaterialLawFromString);
     m.Read("youngs_modulus_pa", &s->material.youngs_modulus_pa);
     m.Read("poisson_ratio", &s->material.poisson_ratio);
     m.Read("thickness_mm", &s->material.thickness_mm);

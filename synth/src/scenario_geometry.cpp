@@ -81,6 +81,7 @@ std::vector<RectPx> ClampRectsPx(const Scenario& s) {
 
 TruthMaterial ToTruthMaterial(const Scenario& s) {
   TruthMaterial m;
+  m.law = s.material.law;
   m.youngs_modulus_pa = s.material.youngs_modulus_pa;
   m.poisson_ratio = s.material.poisson_ratio;
   m.thickness_m = s.material.thickness_mm * 1e-3;

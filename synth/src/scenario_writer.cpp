@@ -83,6 +83,7 @@ std::string ScenarioToYaml(const Scenario& s) {
     out << YAML::EndMap;
   }
   out << YAML::Key << "material" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "law" << YAML::Value << ToString(s.material.law);
   EmitNum(out, "youngs_modulus_pa", s.material.youngs_modulus_pa);
   EmitNum(out, "poisson_ratio", s.material.poisson_ratio);
   EmitNum(out, "thickness_mm", s.material.thickness_mm);

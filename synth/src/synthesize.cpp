@@ -105,7 +105,8 @@ nlohmann::json MaterialJson(const TruthMaterial& m) {
   for (const auto& r : m.stiffness_regions) {
     regions.push_back({{"centre_px", Json(r.centre_px)}, {"radius_px", r.radius_px}, {"factor", r.factor}});
   }
-  return {{"youngs_modulus_pa", m.youngs_modulus_pa},
+  return {{"law", ToString(m.law)},
+          {"youngs_modulus_pa", m.youngs_modulus_pa},
           {"poisson_ratio", m.poisson_ratio},
           {"thickness_m", m.thickness_m},
           {"density_kg_m3", m.density_kg_m3},

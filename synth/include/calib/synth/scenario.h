@@ -7,6 +7,7 @@
 // *_s seconds, *_pa pascals, *_n newtons, *_rgb 8-bit colours (R, G, B).
 
 #include "calib/core/types.h"
+#include "calib/synth/material_law.h"
 #include "calib/synth/truth_simulator.h"
 
 #include <array>
@@ -145,6 +146,8 @@ struct HangSpec {
 
 /// The base (elastic) material of the truth model.
 struct MaterialSpec {
+  /// neo_hookean (the default) or hencky (logarithmic strain, hencky.h).
+  MaterialLaw law = MaterialLaw::kNeoHookean;
   double youngs_modulus_pa = 30e3;
   double poisson_ratio = 0.3;
   double thickness_mm = 20.0;
