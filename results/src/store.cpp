@@ -12,7 +12,10 @@
 namespace calib {
 namespace {
 
-constexpr int kSchemaVersion = 1;
+// Version 1: jobs, evaluations, checkpoints. Version 2 adds job_locks and
+// job_inputs; a version 1 store is migrated when opened for writing and read
+// as it is (no locks, no inputs) when opened read-only.
+constexpr int kSchemaVersion = 2;
 // PRAGMA application_id: 'CALB', so a foreign SQLite file is recognised.
 constexpr int64_t kApplicationId = 0x43414C42;
 
@@ -57,6 +60,25 @@ CREATE TABLE checkpoints(
   state_fnv1a64 INTEGER NOT NULL,
   PRIMARY KEY (job_id, sequence)
 );
+)sql";
+
+// What version 2 adds to version 1 (a new store gets both).
+constexpr const char* kSchemaVersion2 = R"sql(
+CREATE TABLE job_locks(
+  job_id INTEGER PRIMARY KEY REFERENCES jobs(id) ON DELETE CASCADE,
+  pid INTEGER NOT NULL,
+  host TEXT NOT NULL,
+  token TEXT NOT NULL,
+  acquired_unix_s REAL NOT NULL,
+  heartbeat_unix_s REAL NOT NULL
+);
+CREATE TABLE job_inputs(
+  job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+  path TEXT NOT NULL,
+  size_bytes INTEGER NOT NULL,
+  fnv1a64 INTEGER NOT NULL,
+  PRIMARY KEY (job_id, path)
+) WITHOUT ROWID;
 )sql";
 
 constexpr const char* kEvaluationColumns =
@@ -116,8 +138,10 @@ struct ResultStore::Impl {
 
   StoreOptions options;
   sqlite::Db db;
+  int64_t schema_version = kSchemaVersion;  // 1: a read-only store not migrated
 
   void OpenSchema();
+  void Migrate(int64_t from);
   void RequireJob(int64_t job, const std::string& operation);
   JobInfo ReadJob(const sqlite::Statement& s, const std::string& operation);
   EvaluationRecord ReadEvaluation(const sqlite::Statement& s, int64_t job);
@@ -155,6 +179,7 @@ void ResultStore::Impl::OpenSchema() {
     // Another process may have created it between the check and the lock.
     if (std::stoll(db.QueryText("PRAGMA user_version", "create schema")) == 0) {
       db.Exec(kSchema, "create schema");
+      db.Exec(kSchemaVersion2, "create schema");
       db.Exec(fmt::format("PRAGMA application_id={}; PRAGMA user_version={}", kApplicationId,
                           kSchemaVersion),
               "create schema (version)");
@@ -166,10 +191,24 @@ void ResultStore::Impl::OpenSchema() {
     throw StoreError(fmt::format("{}: {}: not a calib results store (application_id {}, expected {})",
                                  db.path().string(), where, app_id, kApplicationId));
   }
-  if (version != kSchemaVersion) {
-    throw StoreError(fmt::format("{}: {}: schema version {}; this build reads version {}",
+  if (version < 1 || version > kSchemaVersion) {
+    throw StoreError(fmt::format("{}: {}: schema version {}; this build reads versions 1 to {}",
                                  db.path().string(), where, version, kSchemaVersion));
   }
+  schema_version = version;
+  if (version < kSchemaVersion && !options.read_only) Migrate(version);
+}
+
+void ResultStore::Impl::Migrate(int64_t from) {
+  const std::string op = fmt::format("migrate schema version {} to {}", from, kSchemaVersion);
+  sqlite::Transaction tx(db, op);
+  // Another process may have migrated it between the check and the lock.
+  if (std::stoll(db.QueryText("PRAGMA user_version", op)) == 1) {
+    db.Exec(kSchemaVersion2, op);
+    db.Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion), op);
+  }
+  tx.Commit();
+  schema_version = kSchemaVersion;
 }
 
 void ResultStore::Impl::RequireJob(int64_t job, const std::string& operation) {
@@ -248,6 +287,8 @@ std::string ResultStore::JournalMode() const {
   return impl_->db.QueryText("PRAGMA journal_mode", "read journal mode");
 }
 
+int64_t ResultStore::SchemaVersion() const { return impl_->schema_version; }
+
 // ------------------------------------------------------------------ jobs
 
 int64_t ResultStore::CreateJob(const std::string& name, const nlohmann::json& spec) {
@@ -325,6 +366,116 @@ void ResultStore::SetJobSpec(int64_t job, const nlohmann::json& spec) {
   if (impl_->db.Changes() == 0) {
     throw StoreError(fmt::format("{}: {}: no job with id {}", path().string(), op, job));
   }
+}
+
+// --------------------------------------------------------- lock, inputs
+
+namespace {
+
+JobLock ReadJobLock(const sqlite::Statement& s) {
+  JobLock lock;
+  lock.pid = s.Int(0);
+  lock.host = s.Text(1);
+  lock.token = s.Text(2);
+  lock.acquired_unix_s = s.Double(3);
+  lock.heartbeat_unix_s = s.Double(4);
+  return lock;
+}
+
+constexpr const char* kLockColumns = "pid, host, token, acquired_unix_s, heartbeat_unix_s";
+
+}  // namespace
+
+std::optional<JobLock> ResultStore::AcquireJobLock(int64_t job, const JobLock& claim,
+                                                   const JobLockTakeover& may_take_over) {
+  const std::string op = fmt::format("lock job {}", job);
+  sqlite::Transaction tx(impl_->db, op);
+  impl_->RequireJob(job, op);
+  const double now = NowUnixSeconds();
+  std::optional<JobLock> taken_over;
+  {
+    auto s = impl_->db.Prepare(
+        fmt::format("SELECT {} FROM job_locks WHERE job_id = ?1", kLockColumns), op);
+    s.Bind(1, job);
+    if (s.Step()) {
+      JobLock holder = ReadJobLock(s);
+      if (holder.token != claim.token) {
+        if (!may_take_over(holder, now - holder.heartbeat_unix_s)) {
+          const std::string message = fmt::format(
+              "{}: job {} is held by process {} on host '{}' (last heartbeat {:.0f} s ago)",
+              path().string(), job, holder.pid, holder.host, now - holder.heartbeat_unix_s);
+          throw JobLockedError(message, std::move(holder));
+        }
+        taken_over = std::move(holder);
+      }
+    }
+  }
+  auto s = impl_->db.Prepare(
+      "INSERT OR REPLACE INTO job_locks(job_id, pid, host, token, acquired_unix_s, "
+      "heartbeat_unix_s) VALUES (?1, ?2, ?3, ?4, ?5, ?5)",
+      op);
+  s.Bind(1, job).Bind(2, claim.pid).Bind(3, claim.host).Bind(4, claim.token).Bind(5, now);
+  s.Run();
+  tx.Commit();
+  return taken_over;
+}
+
+bool ResultStore::HeartbeatJobLock(int64_t job, const std::string& token) {
+  const std::string op = fmt::format("heartbeat of job {}", job);
+  auto s = impl_->db.Prepare(
+      "UPDATE job_locks SET heartbeat_unix_s = ?3 WHERE job_id = ?1 AND token = ?2", op);
+  s.Bind(1, job).Bind(2, token).Bind(3, NowUnixSeconds());
+  s.Run();
+  return impl_->db.Changes() == 1;
+}
+
+void ResultStore::ReleaseJobLock(int64_t job, const std::string& token) {
+  const std::string op = fmt::format("unlock job {}", job);
+  auto s = impl_->db.Prepare("DELETE FROM job_locks WHERE job_id = ?1 AND token = ?2", op);
+  s.Bind(1, job).Bind(2, token);
+  s.Run();
+}
+
+std::optional<JobLock> ResultStore::JobLockHolder(int64_t job) const {
+  if (impl_->schema_version < 2) return std::nullopt;
+  auto s = impl_->db.Prepare(
+      fmt::format("SELECT {} FROM job_locks WHERE job_id = ?1", kLockColumns),
+      fmt::format("read lock of job {}", job));
+  s.Bind(1, job);
+  if (!s.Step()) return std::nullopt;
+  return ReadJobLock(s);
+}
+
+void ResultStore::SetJobInputs(int64_t job, std::span<const InputFingerprint> inputs) {
+  const std::string op = fmt::format("record inputs of job {}", job);
+  sqlite::Transaction tx(impl_->db, op);
+  impl_->RequireJob(job, op);
+  {
+    auto s = impl_->db.Prepare("DELETE FROM job_inputs WHERE job_id = ?1", op);
+    s.Bind(1, job);
+    s.Run();
+  }
+  for (const InputFingerprint& input : inputs) {
+    auto s = impl_->db.Prepare(
+        "INSERT INTO job_inputs(job_id, path, size_bytes, fnv1a64) VALUES (?1, ?2, ?3, ?4)", op);
+    s.Bind(1, job).Bind(2, input.path).Bind(3, input.size_bytes);
+    s.Bind(4, static_cast<int64_t>(input.fnv1a64));
+    s.Run();
+  }
+  tx.Commit();
+}
+
+std::vector<InputFingerprint> ResultStore::JobInputs(int64_t job) const {
+  std::vector<InputFingerprint> out;
+  if (impl_->schema_version < 2) return out;
+  auto s = impl_->db.Prepare(
+      "SELECT path, size_bytes, fnv1a64 FROM job_inputs WHERE job_id = ?1 ORDER BY path",
+      fmt::format("read inputs of job {}", job));
+  s.Bind(1, job);
+  while (s.Step()) {
+    out.push_back({s.Text(0), s.Int(1), static_cast<uint64_t>(s.Int(2))});
+  }
+  return out;
 }
 
 // ----------------------------------------------------------- evaluations

@@ -1,6 +1,7 @@
 // The results store: schema and WAL mode, bit-exact round trips, the derived
 // best, checkpoints with fallback past corrupted ones, exports that parse
-// back, persistence across reopening, and errors naming the database.
+// back, persistence across reopening, the job lock, input fingerprints, the
+// migration of a version 1 store, and errors naming the database.
 
 #include "calib/results/store.h"
 
@@ -436,6 +437,100 @@ TEST(ResultStore, ForeignFilesAreRejected) {
   } catch (const StoreError& e) {
     EXPECT_CONTAINS(e.what(), "schema version 9");
   }
+}
+
+JobLock Claim(int64_t pid, const std::string& token) {
+  JobLock claim;
+  claim.pid = pid;
+  claim.host = "host-a";
+  claim.token = token;
+  return claim;
+}
+
+TEST(ResultStore, AJobLockIsHeldUntilReleasedOrTakenOver) {
+  const fs::path db = testing::ScratchDir("store_lock") / "r.sqlite";
+  ResultStore store(db);
+  const int64_t job = store.CreateJob("job", kSpec);
+  EXPECT_FALSE(store.JobLockHolder(job).has_value());
+  const auto never = [](const JobLock&, double) { return false; };
+  EXPECT_FALSE(store.AcquireJobLock(job, Claim(101, "first"), never).has_value());
+  ASSERT_TRUE(store.JobLockHolder(job).has_value());
+  EXPECT_EQ(store.JobLockHolder(job)->pid, 101);
+  EXPECT_EQ(store.JobLockHolder(job)->host, "host-a");
+  EXPECT_GT(store.JobLockHolder(job)->heartbeat_unix_s, 1.6e9);
+  // The holder may claim it again; another process may not.
+  EXPECT_FALSE(store.AcquireJobLock(job, Claim(101, "first"), never).has_value());
+  try {
+    ResultStore(db).AcquireJobLock(job, Claim(202, "second"), never);
+    FAIL() << "a held job was locked twice";
+  } catch (const JobLockedError& e) {
+    EXPECT_CONTAINS(e.what(), db.string());
+    EXPECT_CONTAINS(e.what(), "held by process 101 on host 'host-a'");
+    EXPECT_EQ(e.holder().token, "first");
+  }
+  EXPECT_TRUE(store.HeartbeatJobLock(job, "first"));
+  EXPECT_FALSE(store.HeartbeatJobLock(job, "second"));
+  // A holder the policy calls stopped is taken over, and its heartbeat then fails.
+  double age_seen = -1.0;
+  const auto stopped = [&](const JobLock& holder, double age_s) {
+    age_seen = age_s;
+    return holder.pid == 101;
+  };
+  const std::optional<JobLock> taken = store.AcquireJobLock(job, Claim(202, "second"), stopped);
+  ASSERT_TRUE(taken.has_value());
+  EXPECT_EQ(taken->pid, 101);
+  EXPECT_GE(age_seen, 0.0);
+  EXPECT_FALSE(store.HeartbeatJobLock(job, "first")) << "the old holder lost the lock";
+  store.ReleaseJobLock(job, "first");  // not its lock any more: nothing happens
+  EXPECT_EQ(store.JobLockHolder(job)->pid, 202);
+  store.ReleaseJobLock(job, "second");
+  EXPECT_FALSE(store.JobLockHolder(job).has_value());
+}
+
+TEST(ResultStore, InputFingerprintsRoundTrip) {
+  const fs::path db = testing::ScratchDir("store_inputs") / "r.sqlite";
+  ResultStore store(db);
+  const int64_t job = store.CreateJob("job", kSpec);
+  EXPECT_TRUE(store.JobInputs(job).empty());
+  const std::vector<InputFingerprint> inputs = {
+      {"rec/track.csv", 1234, 0xfedcba9876543210ULL}, {"rec/recording.json", 55, 7}};
+  store.SetJobInputs(job, inputs);
+  const std::vector<InputFingerprint> back = ResultStore(db).JobInputs(job);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0].path, "rec/recording.json");  // by path
+  EXPECT_EQ(back[1].path, "rec/track.csv");
+  EXPECT_EQ(back[1].size_bytes, 1234);
+  EXPECT_EQ(back[1].fnv1a64, 0xfedcba9876543210ULL) << "all 64 bits kept";
+  store.SetJobInputs(job, std::span(inputs).first(1));
+  EXPECT_EQ(store.JobInputs(job).size(), 1u) << "replaced, not added to";
+}
+
+TEST(ResultStore, AVersion1StoreIsMigratedWhenOpenedForWriting) {
+  const fs::path dir = testing::ScratchDir("store_v1");
+  {
+    ResultStore store(dir / "r.sqlite");
+    const int64_t job = store.CreateJob("job", kSpec);
+    store.RecordEvaluations(job, std::vector<EvaluationRecord>{MakeRecord(0, 5.0)});
+  }
+  // What a version 1 build wrote: no job_locks, no job_inputs.
+  RawSql(dir / "r.sqlite", "DROP TABLE job_locks; DROP TABLE job_inputs; PRAGMA user_version=1");
+  StoreOptions read_only;
+  read_only.read_only = true;
+  {
+    ResultStore reader(dir / "r.sqlite", read_only);
+    EXPECT_EQ(reader.SchemaVersion(), 1);
+    const int64_t job = reader.FindJob("job")->id;
+    EXPECT_EQ(reader.EvaluationCount(job), 1);
+    EXPECT_FALSE(reader.JobLockHolder(job).has_value());
+    EXPECT_TRUE(reader.JobInputs(job).empty());
+  }
+  ResultStore store(dir / "r.sqlite");
+  EXPECT_EQ(store.SchemaVersion(), 2);
+  const int64_t job = store.FindJob("job")->id;
+  EXPECT_EQ(store.EvaluationCount(job), 1) << "nothing lost";
+  EXPECT_FALSE(store.AcquireJobLock(job, Claim(1, "t"), [](const JobLock&, double) { return false; })
+                   .has_value());
+  EXPECT_EQ(ResultStore(dir / "r.sqlite", read_only).SchemaVersion(), 2);
 }
 
 }  // namespace

@@ -3,7 +3,8 @@
 // evaluation of every job, and checkpoints. The store owns persistence; the
 // runner owns what goes in.
 //
-// Tables (schema version 1, PRAGMA user_version):
+// Tables (schema version 2, PRAGMA user_version; a version 1 store, which
+// lacks job_locks and job_inputs, is migrated when opened for writing):
 //   jobs(id, name UNIQUE, spec_json, created_unix_s, updated_unix_s, status,
 //        stop_reason, result_json)
 //   evaluations(job_id, id, parameters_json, x_json, status, score, mean_iou,
@@ -11,6 +12,9 @@
 //        attempt, detail_json, recorded_unix_s)     PRIMARY KEY (job_id, id)
 //   checkpoints(job_id, sequence, created_unix_s, evaluations_done,
 //        state_json BLOB, state_size, state_fnv1a64)  PRIMARY KEY (job_id, sequence)
+//   job_locks(job_id PRIMARY KEY, pid, host, token, acquired_unix_s,
+//        heartbeat_unix_s)                            the process working on a job
+//   job_inputs(job_id, path, size_bytes, fnv1a64)     PRIMARY KEY (job_id, path)
 // The best evaluation is derived (lowest score among ok evaluations, ties to
 // the lowest id, as search::CheckedOptimizer ranks), so it can never
 // disagree with the evaluations.
@@ -39,6 +43,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -52,6 +57,41 @@ namespace calib {
 class StoreError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+/// The process that works on a job (`calib run` / `calib resume`), known
+/// to be alive by its heartbeat. At most one per job.
+struct JobLock {
+  int64_t pid = 0;
+  std::string host;
+  std::string token;               ///< unique per acquisition (a reused pid is another holder)
+  double acquired_unix_s = 0.0;    ///< set by AcquireJobLock
+  double heartbeat_unix_s = 0.0;   ///< set by AcquireJobLock and HeartbeatJobLock
+};
+
+/// AcquireJobLock found the job held by a process it may not take over;
+/// what() names the store, the job and the holder.
+class JobLockedError : public StoreError {
+ public:
+  JobLockedError(const std::string& message, JobLock holder)
+      : StoreError(message), holder_(std::move(holder)) {}
+  const JobLock& holder() const { return holder_; }
+
+ private:
+  JobLock holder_;
+};
+
+/// Whether a holder whose heartbeat is `heartbeat_age_s` old may be taken
+/// over (it stopped: killed, or its machine gone). The policy lives with the
+/// caller (jobs/job_lock.h); the store only applies it atomically.
+using JobLockTakeover = std::function<bool(const JobLock& holder, double heartbeat_age_s)>;
+
+/// A file a job reads, with a fingerprint of its content: what `resume`
+/// compares to refuse a data set changed under a job.
+struct InputFingerprint {
+  std::string path;         ///< as the caller names it (unique per job)
+  int64_t size_bytes = 0;
+  uint64_t fnv1a64 = 0;     ///< FNV-1a 64 of the bytes
 };
 
 enum class JobStatus {
@@ -151,6 +191,9 @@ class ResultStore {
   const std::filesystem::path& path() const;
   /// "wal" for a writable store (tests check it).
   std::string JournalMode() const;
+  /// PRAGMA user_version: the current one, or 1 for a read-only store
+  /// written by an older build.
+  int64_t SchemaVersion() const;
 
   // ------------------------------------------------------------- jobs
   /// A new job; throws StoreError if the name is taken.
@@ -163,6 +206,26 @@ class ResultStore {
   void SetJobResult(int64_t job, const nlohmann::json& result);
   /// Replaces the stored spec (a resume that accepts a changed spec).
   void SetJobSpec(int64_t job, const nlohmann::json& spec);
+
+  // ---------------------------------------------------- lock, inputs
+  /// Takes job `job` for `claim` (pid, host, token; the times are set here)
+  /// in one transaction: when no one holds it, when claim.token already
+  /// does, or when `may_take_over` says the holder stopped. Returns the
+  /// holder taken over (nullopt: the lock was free or already claim's).
+  /// Throws JobLockedError naming the holder otherwise.
+  std::optional<JobLock> AcquireJobLock(int64_t job, const JobLock& claim,
+                                        const JobLockTakeover& may_take_over);
+  /// Renews the heartbeat of the holder `token`; false when it no longer
+  /// holds the job (taken over).
+  bool HeartbeatJobLock(int64_t job, const std::string& token);
+  /// Releases the lock if `token` holds it.
+  void ReleaseJobLock(int64_t job, const std::string& token);
+  /// Who holds the job; nullopt when no one does (or a version 1 store).
+  std::optional<JobLock> JobLockHolder(int64_t job) const;
+  /// Replaces the job's input fingerprints.
+  void SetJobInputs(int64_t job, std::span<const InputFingerprint> inputs);
+  /// By path; empty when none were recorded (or a version 1 store).
+  std::vector<InputFingerprint> JobInputs(int64_t job) const;
 
   // ------------------------------------------------------ evaluations
   /// Records a batch in one transaction (all or nothing). Throws StoreError
