@@ -58,23 +58,6 @@ std::optional<std::string> ExpandPattern(const std::string& pattern, int index) 
   return pattern.substr(0, percent) + number + pattern.substr(pos + 1);
 }
 
-/// The files the video reads, in order: the file itself, or the files of an
-/// image sequence from its first index (the first of 0..1000 that exists)
-/// to the last before a gap.
-std::vector<fs::path> VideoFiles(const fs::path& video) {
-  const std::string name = video.filename().string();
-  if (name.find('%') == std::string::npos) return {video};
-  const auto expand = [&](int i) {
-    const std::optional<std::string> file = ExpandPattern(name, i);
-    return file ? video.parent_path() / *file : fs::path();
-  };
-  if (expand(0).empty()) return {video};  // not a pattern: a file with '%' in its name
-  int first = 0;
-  while (first <= 1000 && !fs::exists(expand(first))) ++first;
-  std::vector<fs::path> files;
-  for (int i = first; fs::exists(expand(i)); ++i) files.push_back(expand(i));
-  return files;
-}
 
 std::vector<BitMask> SegmentVideo(const Recording& rec, const SegmentationOptions& opt) {
   cv::VideoCapture cap(rec.video_path.string());
@@ -105,6 +88,21 @@ std::vector<BitMask> SegmentVideo(const Recording& rec, const SegmentationOption
 }
 
 }  // namespace
+
+std::vector<fs::path> VideoFiles(const fs::path& video) {
+  const std::string name = video.filename().string();
+  if (name.find('%') == std::string::npos) return {video};
+  const auto expand = [&](int i) {
+    const std::optional<std::string> file = ExpandPattern(name, i);
+    return file ? video.parent_path() / *file : fs::path();
+  };
+  if (expand(0).empty()) return {video};  // not a pattern: a file with '%' in its name
+  int first = 0;
+  while (first <= 1000 && !fs::exists(expand(first))) ++first;
+  std::vector<fs::path> files;
+  for (int i = first; fs::exists(expand(i)); ++i) files.push_back(expand(i));
+  return files;
+}
 
 bool SegmentationOptions::IsValid(std::string* error) const {
   auto fail = [error](const std::string& message) {

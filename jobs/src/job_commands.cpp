@@ -1,6 +1,8 @@
 #include "calib/jobs/job_commands.h"
 
 #include "calib/jobs/batch_evaluator.h"
+#include "calib/jobs/job_inputs.h"
+#include "calib/jobs/job_lock.h"
 #include "calib/jobs/mpi_evaluator.h"
 
 #include <fmt/format.h>
@@ -93,16 +95,14 @@ std::filesystem::path StorePath(const JobSpec& spec, const JobCommandOptions& op
   return options.store ? *options.store : spec.results.store;
 }
 
-// Finds or creates the job for `start`. Returns nullopt when resume finds
-// nothing to do (finished or aborted).
-std::optional<int64_t> OpenJobFor(const JobSpec& spec, JobStart start, ResultStore& store,
-                                  RunSummary* left_alone) {
+// Finds or creates the job for `start`; changes nothing in an existing job
+// (that waits for its lock).
+int64_t FindOrCreateJob(const JobSpec& spec, JobStart start, ResultStore& store) {
   const std::optional<JobInfo> info = store.FindJob(spec.name);
   if (start == JobStart::kRun) {
     if (!info) return store.CreateJob(spec.name, ToJson(spec));
     // A job that never got going (created, nothing recorded) may be run again.
     if (store.EvaluationCount(info->id) == 0 && store.CheckpointCount(info->id) == 0) {
-      CheckResumedSpec(spec, store, *info);
       return info->id;
     }
     throw std::invalid_argument(fmt::format(
@@ -116,14 +116,31 @@ std::optional<int64_t> OpenJobFor(const JobSpec& spec, JobStart start, ResultSto
         fmt::format("{}: there is no job '{}' to resume: start it with `calib run {}`",
                     store.path().string(), spec.name, spec.source));
   }
-  CheckResumedSpec(spec, store, *info);
-  if (info->status == JobStatus::kFinished || info->status == JobStatus::kAborted) {
-    left_alone->status = JobStatus::kCreated;
-    left_alone->stop_reason = fmt::format("the job is already {} ({})", ToString(info->status),
-                                          info->stop_reason);
-    return std::nullopt;
-  }
   return info->id;
+}
+
+// With the job's lock held: the spec and the recordings must be those the
+// job started with (a job run again before anything was recorded takes the
+// new ones). False when resume finds nothing to do (finished or aborted).
+bool PrepareHeldJob(const JobSpec& spec, JobStart start, ResultStore& store, int64_t job,
+                    const std::vector<InputFingerprint>& inputs, RunSummary* left_alone) {
+  const JobInfo info = store.Job(job);
+  CheckResumedSpec(spec, store, info);
+  if (start == JobStart::kResume &&
+      (info.status == JobStatus::kFinished || info.status == JobStatus::kAborted)) {
+    left_alone->status = JobStatus::kCreated;
+    left_alone->stop_reason = fmt::format("the job is already {} ({})", ToString(info.status),
+                                          info.stop_reason);
+    return false;
+  }
+  const std::vector<InputFingerprint> recorded = store.JobInputs(job);
+  // None recorded: a new job, or one started by a build that did not record them.
+  if (start == JobStart::kResume && !recorded.empty()) {
+    CheckJobInputsUnchanged(spec, recorded, inputs);
+  } else {
+    store.SetJobInputs(job, inputs);
+  }
+  return true;
 }
 
 }  // namespace
@@ -160,6 +177,18 @@ void CheckWritableFolder(const JobSpec& spec, const std::filesystem::path& dir) 
   std::filesystem::remove(probe, ec);
 }
 
+JobReport WriteReport(const JobSpec& spec, ResultStore& store, int64_t job,
+                      const PreparationOptions& preparation, const JobCommandOptions& options) {
+  CommandSettings settings;
+  settings.preparation = preparation;
+  settings.simulation = spec.model.simulation;
+  settings.model = ModelDefinition{spec.model.effects};
+  JobReportOptions report_options;
+  report_options.simulate = options.report_simulations;
+  report_options.write_video = options.report_video;
+  return WriteJobReport(spec, store, job, settings, report_options);
+}
+
 }  // namespace
 
 JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOptions& options) {
@@ -184,55 +213,63 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
   std::unique_ptr<MpiBatchEvaluator> mpi_evaluator;
   if (use_mpi) mpi_evaluator = std::make_unique<MpiBatchEvaluator>(options.mpi->size());
 
-  std::unique_ptr<Objective> objective;
-  std::unique_ptr<BatchEvaluator> evaluator;
-  if (use_mpi) {
-    CheckRecordings(spec);  // fail here, once, rather than on every worker
-    out.objective = "evaluated by the worker ranks";
-  } else {
-    objective = make_objective(spec, preparation);
-    out.objective = objective->Describe();
-    const int threads = ResolveThreadCount(options.threads.value_or(spec.threads));
-    evaluator = std::make_unique<ThreadBatchEvaluator>(*objective, threads);
-  }
+  // Named before any work: a thread count the machine cannot give, a
+  // recording that cannot be read (fingerprinting reads them all).
+  const int threads = use_mpi ? 1 : ResolveThreadCount(options.threads.value_or(spec.threads));
+  const std::vector<InputFingerprint> inputs = FingerprintJobInputs(spec);
 
   out.store = StorePath(spec, options);
   if (!out.store.parent_path().empty()) std::filesystem::create_directories(out.store.parent_path());
   ResultStore store(out.store);
-  const std::optional<int64_t> job = OpenJobFor(spec, start, store, &out.run);
-  if (!job) return out;
-  out.job = *job;
+  out.job = FindOrCreateJob(spec, start, store);
+  // Before anything of the job changes: a second process is refused here.
+  HeldJobLock lock(store, out.job, spec.name, options.lock);
+  if (lock.taken_over()) {
+    const JobLock& was = *lock.taken_over();
+    spdlog::warn("{}: job '{}': took over the lock of {}, which has stopped", out.store.string(),
+                 spec.name, DescribeJobLockHolder(was, lock.taken_over_age_s()));
+  }
+  if (!PrepareHeldJob(spec, start, store, out.job, inputs, &out.run)) {
+    if (options.write_report) out.report = WriteReport(spec, store, out.job, preparation, options);
+    return out;
+  }
+
+  std::unique_ptr<Objective> objective;
+  std::unique_ptr<BatchEvaluator> evaluator;
+  if (use_mpi) {
+    out.objective = "evaluated by the worker ranks";
+  } else {
+    objective = make_objective(spec, preparation);
+    out.objective = objective->Describe();
+    evaluator = std::make_unique<ThreadBatchEvaluator>(*objective, threads);
+  }
 
   ProgressDisplay progress(options.progress, options.progress_interval_s);
   ScopedStopSignals signals;
   RunControl control;
   control.batch_size = options.batch_size;
   control.wall_time_s = options.wall_time_s ? options.wall_time_s : spec.budget.wall_time_s;
-  control.interrupted = [] { return ScopedStopSignals::Interrupted(); };
+  control.interrupted = [&lock] { return ScopedStopSignals::Interrupted() || lock.lost(); };
   try {
     if (mpi_evaluator) mpi_evaluator->WaitForWorkers();
     BatchEvaluator& batch_evaluator = mpi_evaluator ? *mpi_evaluator : *evaluator;
-    out.run = RunCalibration(spec, store, *job, batch_evaluator, control, &progress);
+    out.run = RunCalibration(spec, store, out.job, batch_evaluator, control, &progress);
   } catch (const std::exception& e) {
     try {
-      store.SetJobStatus(*job, JobStatus::kFailed, e.what());
+      store.SetJobStatus(out.job, JobStatus::kFailed, e.what());
     } catch (const std::exception&) {
       // The store itself failed; the first error is the one to report.
     }
     throw;
   }
   if (mpi_evaluator) mpi_evaluator->StopWorkers();
-
-  if (options.write_report) {
-    CommandSettings settings;
-    settings.preparation = preparation;
-    settings.simulation = spec.model.simulation;
-    settings.model = ModelDefinition{spec.model.effects};
-    JobReportOptions report_options;
-    report_options.simulate = options.report_simulations;
-    report_options.write_video = options.report_video;
-    out.report = WriteJobReport(spec, store, *job, settings, report_options);
+  if (lock.lost()) {
+    spdlog::warn("{}: job '{}': another process took over its lock (this one had stopped "
+                 "heart-beating); stopped",
+                 out.store.string(), spec.name);
   }
+
+  if (options.write_report) out.report = WriteReport(spec, store, out.job, preparation, options);
   return out;
 }
 

@@ -4,11 +4,19 @@
 
 #include <fmt/format.h>
 
+#include <chrono>
 #include <fstream>
 #include <set>
 #include <stdexcept>
 
 namespace calib {
+namespace {
+
+double NowUnixSeconds() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
 
 std::string JobReport::Report() const {
   std::string text;
@@ -24,11 +32,29 @@ std::string JobReport::Report() const {
   return text;
 }
 
+std::string JobStatusText(const ResultStore& store, const JobInfo& info,
+                          const JobLockOptions& lock_options) {
+  const std::string reason = info.stop_reason.empty() ? "" : " (" + info.stop_reason + ")";
+  if (info.status != JobStatus::kRunning) return ToString(info.status) + reason;
+  // "running" is also what a process killed by a signal or a full disk
+  // leaves; the lock's heartbeat tells the two apart.
+  const std::optional<JobLock> holder = store.JobLockHolder(info.id);
+  if (holder) {
+    const double age_s = NowUnixSeconds() - holder->heartbeat_unix_s;
+    if (!JobLockHolderStopped(*holder, age_s, lock_options)) {
+      return fmt::format("running, by {}", DescribeJobLockHolder(*holder, age_s));
+    }
+    return fmt::format("interrupted (left running by {}, which has stopped); continue it with "
+                       "`calib resume`",
+                       DescribeJobLockHolder(*holder, age_s));
+  }
+  return "interrupted (left running, and no process holds it); continue it with `calib resume`";
+}
+
 std::string JobResultsText(const ResultStore& store, int64_t job) {
   const JobInfo info = store.Job(job);
   std::string text = fmt::format("job: {} (store {})\n", info.name, store.path().string());
-  text += fmt::format("status: {}{}\n", ToString(info.status),
-                      info.stop_reason.empty() ? "" : " (" + info.stop_reason + ")");
+  text += fmt::format("status: {}\n", JobStatusText(store, info));
   text += store.Summary(job).Report();
   if (!text.empty() && text.back() != '\n') text += '\n';
   if (info.result.is_object() && info.result.contains("recordings")) {

@@ -55,6 +55,11 @@ BitMask SegmentFrame(const cv::Mat& bgr, const HsvRange& hsv, const PixelRect& r
 std::vector<BitMask> SegmentRecording(const Recording& rec, const SegmentationOptions& opt,
                                       const std::filesystem::path& cache_dir);
 
+/// The files a video is read from, in order: the file itself, or the files
+/// of an image sequence ("frames/%06d.png") from its first index (the first
+/// of 0..1000 that exists) to the last before a gap.
+std::vector<std::filesystem::path> VideoFiles(const std::filesystem::path& video);
+
 /// The key under which SegmentRecording caches the masks of `rec` with
 /// `opt`: FNV-1a 64 of the video's bytes (every file of an image sequence),
 /// the hsv range, roi, frame count and opt.CacheKey(). Throws RecordingError

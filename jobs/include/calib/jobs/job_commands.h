@@ -6,15 +6,21 @@
 // job or field.
 //
 // run:    creates the job in the store (an existing job of that name with
-//         evaluations is an error: resume it), then runs it.
+//         evaluations is an error: resume it), records the fingerprints of
+//         its recordings (job_inputs.h), then runs it.
 // resume: finds the job, checks that the spec is the one it was started
 //         with (only threads, processes, checkpoint, budget.wall_time_s and
-//         results may change: they do not change the history), and continues
-//         from the newest intact checkpoint. A finished or aborted job is
-//         left as it is.
+//         results may change: they do not change the history) and that its
+//         recordings are unchanged (naming every file that changed), and
+//         continues from the newest intact checkpoint. A finished or aborted
+//         job is left as it is (its report is written again).
+// Both hold the job's lock (job_lock.h) from before they change anything
+// until they end: a job another live process works on is refused, naming
+// that process.
 // Under an MPI launcher with several ranks, rank 0 manages (optimiser,
 // store, progress, report) and the other ranks evaluate (mpi_evaluator.h).
 
+#include "calib/jobs/job_lock.h"
 #include "calib/jobs/job_report.h"
 #include "calib/jobs/job_spec.h"
 #include "calib/jobs/objective.h"
@@ -65,6 +71,8 @@ struct JobCommandOptions {
   /// Seconds between progress lines when progress is logged (not a terminal).
   double progress_interval_s = 10.0;
   int batch_size = kDefaultBatchSize;
+  /// Heartbeat period and the silence after which a holder is taken over.
+  JobLockOptions lock;
   /// Null: MakeRecordingObjective.
   ObjectiveFactory make_objective;
   /// Set when launched by MPI with several ranks (see MpiSession).
@@ -83,9 +91,10 @@ struct JobCommandResult {
   std::string objective;  ///< Objective::Describe()
 };
 
-/// `calib run` / `calib resume`. SIGINT and SIGTERM stop the run resumably
-/// (a second SIGINT kills at once). The job is marked failed when the run
-/// throws; the exception propagates.
+/// `calib run` / `calib resume`. SIGINT, SIGTERM and SIGHUP stop the run
+/// resumably (a second signal kills at once). The job is marked failed when
+/// the run throws; the exception propagates. A job held by another live
+/// process: JobLockedError, and nothing of the job changes.
 JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOptions& options);
 
 /// Where a job lives for `calib results` / `calib best`: JOB is a job spec

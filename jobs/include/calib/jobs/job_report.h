@@ -10,6 +10,7 @@
 // as the job's result JSON.
 
 #include "calib/jobs/commands.h"
+#include "calib/jobs/job_lock.h"
 #include "calib/jobs/job_spec.h"
 #include "calib/results/store.h"
 
@@ -45,7 +46,15 @@ struct JobReportOptions {
   bool write_video = true;
 };
 
-/// The text of `calib results`: the job's name, status, stop reason, the
+/// The job's status and stop reason for people. A job left "running" is
+/// told apart by its lock (job_lock.h): "running, by process P on host H
+/// (...)" while its holder is alive, "interrupted (...)" with a hint to
+/// resume once the holder stopped (SIGKILL, a crash, a full disk) or when no
+/// process holds it.
+std::string JobStatusText(const ResultStore& store, const JobInfo& info,
+                          const JobLockOptions& lock_options = {});
+
+/// The text of `calib results`: the job's name, status (JobStatusText), the
 /// store's summary and the held-out results kept by WriteJobReport.
 std::string JobResultsText(const ResultStore& store, int64_t job);
 
