@@ -68,10 +68,15 @@ EvaluationRecord ToRecord(const FinishedCandidate& done, const search::Candidate
   rec.parameters = values;
   rec.x = candidate.x;
   rec.ok = r.ok();
-  rec.score = r.ok() ? r.score : std::numeric_limits<double>::quiet_NaN();
-  rec.mean_iou = r.iou.mean;
-  rec.iou_min = r.iou.min;
-  rec.iou_max = r.iou.max;
+  // A failed candidate has no score and no IoU summary: its IoU over the
+  // frames before the failure (0.99 over 1 frame of 330) would rank it above
+  // every candidate that simulated the whole video. The partial figures go
+  // to the detail.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  rec.score = r.ok() ? r.score : nan;
+  rec.mean_iou = r.ok() ? r.iou.mean : nan;
+  rec.iou_min = r.ok() ? r.iou.min : nan;
+  rec.iou_max = r.ok() ? r.iou.max : nan;
   rec.failure_frame = r.ok() ? -1 : r.failure_frame;
   rec.reason = r.reason;
   rec.eval_time_s = r.eval_seconds;
@@ -83,6 +88,7 @@ EvaluationRecord ToRecord(const FinishedCandidate& done, const search::Candidate
                 {"worst_frame", r.iou.worst_frame}};
   if (!r.ok()) {
     rec.detail["partial_score"] = r.score;
+    rec.detail["partial_mean_iou"] = r.iou.mean;
     rec.detail["failure_recording"] = r.failure_recording;
   }
   return rec;

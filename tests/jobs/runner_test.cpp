@@ -12,6 +12,7 @@
 #include "calib/jobs/progress.h"
 #include "calib/results/store.h"
 #include "jobs/job_test_support.h"
+#include "support/csv_support.h"
 #include "support/process_support.h"
 #include "support/sqlite_support.h"
 #include "support/test_support.h"
@@ -225,6 +226,37 @@ TEST(RunnerFailurePolicy, PenaltyStoresEveryFailureWithItsReason) {
   EXPECT_EQ(run.summary.failed, failed);
   ASSERT_TRUE(run.best.has_value());
   EXPECT_TRUE(run.best->ok) << "a failure is never best, whatever its penalty";
+}
+
+TEST(RunnerFailurePolicy, AFailedCandidatesIouNeverRanksAboveAnOkOne) {
+  // The synthetic failures score their first 3 frames of 10 well: an IoU
+  // averaged over those frames would rank them first.
+  const JobSpec spec = testing::SyntheticJobSpec("{name: random}", "budget: {evaluations: 40}");
+  const testing::SyntheticObjective objective({.fail_above_tau = 0.3});
+  const fs::path db = testing::ScratchDir("runner_failed_iou") / "r.sqlite";
+  const JobRun run = RunJobIn(spec, db, objective, 2);
+  int64_t failed = 0;
+  for (const EvaluationRecord& e : run.history) {
+    if (e.ok) {
+      EXPECT_FALSE(std::isnan(e.mean_iou)) << "evaluation " << e.id;
+      continue;
+    }
+    ++failed;
+    EXPECT_TRUE(std::isnan(e.mean_iou)) << "evaluation " << e.id << ": " << e.mean_iou;
+    EXPECT_TRUE(std::isnan(e.iou_min) && std::isnan(e.iou_max)) << "evaluation " << e.id;
+    EXPECT_GT(e.detail["partial_mean_iou"].get<double>(), 0.0) << "the partial figure is kept";
+  }
+  ASSERT_GT(failed, 0);
+  // Sorted by IoU, best first, in a spreadsheet or SQL: a failed one has
+  // none (an empty CSV field, NULL), so it never comes first.
+  ResultStore store(db);
+  store.ExportCsv(store.FindJob(spec.name)->id, db.parent_path() / "e.csv");
+  const testing::CsvRows rows = testing::ParseCsvFile(db.parent_path() / "e.csv");
+  for (size_t i = 1; i < rows.size(); ++i) {
+    if (rows[i][1] == "failed") {
+      EXPECT_EQ(rows[i][3], "") << "row " << i;
+    }
+  }
 }
 
 TEST(RunnerFailurePolicy, RetryEvaluatesAgainAndRecordsTheAttempts) {

@@ -124,8 +124,8 @@ struct EvaluationRecord {
   std::vector<double> x;       ///< the candidate's point as the optimiser asked it
   bool ok = false;             ///< false: failed (see reason)
   double score = 0.0;          ///< ok: the objective (XOR pixels over the training set); failed: NaN
-  double mean_iou = 0.0;       ///< over the frames scored
-  double iou_min = 0.0;        ///< per-frame IoU summary over the frames scored
+  double mean_iou = 0.0;       ///< ok: over every frame; failed: NaN (never ranks above an ok one)
+  double iou_min = 0.0;        ///< ok: per-frame IoU summary; failed: NaN
   double iou_max = 0.0;
   int failure_frame = -1;      ///< failed: the first frame not simulated; -1 otherwise
   std::string reason;          ///< failed: why; empty when ok
