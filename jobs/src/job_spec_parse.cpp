@@ -26,6 +26,39 @@ using spec_reader::MapReader;
 using spec_reader::Show;
 using spec_reader::YamlToJson;
 
+// The errors of a spec's independent parts (name, recordings, model,
+// parameters, budget, optimiser, ...), so that a spec with several errors
+// names all of them at once rather than one per attempt. A part that
+// depends on another (the parameters on the model's effects) is read only
+// when that one is sound: its errors would only echo the first.
+class SpecErrors {
+ public:
+  /// Runs `read`, keeping the JobSpecError it throws; false when it threw.
+  template <class Read>
+  bool Check(Read&& read) {
+    try {
+      read();
+      return true;
+    } catch (const JobSpecError& e) {
+      messages_.emplace_back(e.what());
+      return false;
+    }
+  }
+
+  size_t count() const { return messages_.size(); }
+
+  /// One JobSpecError naming every error, one a line; nothing when none.
+  void ThrowIfAny(const std::string& source) const {
+    if (messages_.empty()) return;
+    if (messages_.size() == 1) throw JobSpecError(messages_.front());
+    throw JobSpecError(fmt::format("{}: {} errors:\n{}", source, messages_.size(),
+                                   fmt::join(messages_, "\n")));
+  }
+
+ private:
+  std::vector<std::string> messages_;
+};
+
 bool ValidName(const std::string& name) {
   if (name.empty()) return false;
   return std::all_of(name.begin(), name.end(), [](char c) {
@@ -159,76 +192,88 @@ bool InRange(const ParameterSpec& s, double v) {
   return !below && v <= s.upper;
 }
 
-std::vector<ParameterSetting> ReadParameters(MapReader& top, const std::vector<ParameterSpec>& specs) {
+// Entry i of the parameters list; `before` holds the entries read so far.
+ParameterSetting ReadParameter(MapReader& top, const YAML::Node& entry, size_t i,
+                               const std::vector<ParameterSpec>& specs,
+                               const std::vector<ParameterSetting>& before) {
+  std::vector<std::string> known;
+  for (const auto& s : specs) known.push_back(s.name);
+  const std::string path = fmt::format("parameters[{}]", i);
+  MapReader r(entry, path, &top.source());
+  ParameterSetting p;
+  const YAML::Node name_node = r.Require("name", fmt::format("one of {}", fmt::join(known, ", ")));
+  p.name = r.String("name", name_node);
+  const auto spec = std::find_if(specs.begin(), specs.end(),
+                                 [&](const ParameterSpec& s) { return s.name == p.name; });
+  if (spec == specs.end()) {
+    r.Fail(r.KeyPath("name"), name_node,
+           fmt::format("unknown parameter; the model's are {}", fmt::join(known, ", ")));
+  }
+  for (const auto& q : before) {
+    if (q.name == p.name) r.Fail(r.KeyPath("name"), name_node, "parameter listed twice");
+  }
+  const bool has_fixed = r.Has("fixed");
+  const bool has_lower = r.Has("lower");
+  const bool has_upper = r.Has("upper");
+  const bool has_scale = r.Has("scale");
+  if (has_fixed) {
+    if (has_lower || has_upper || has_scale) {
+      const std::string other = has_lower ? "lower" : has_upper ? "upper" : "scale";
+      r.Fail(r.KeyPath(other), r.node()[other],
+             "a fixed parameter takes no lower, upper or scale (give fixed, or lower and upper)");
+    }
+    const double v = r.Double("fixed", r.node()["fixed"]);
+    if (!InRange(*spec, v)) {
+      r.Fail(r.KeyPath("fixed"), r.node()["fixed"],
+             fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
+    }
+    p.fixed = v;
+  } else {
+    if (!has_lower) r.Missing(r.KeyPath("lower"), "a searched parameter needs lower and upper (or give fixed)");
+    if (!has_upper) r.Missing(r.KeyPath("upper"), "a searched parameter needs lower and upper (or give fixed)");
+    p.lower = r.Double("lower", r.node()["lower"]);
+    p.upper = r.Double("upper", r.node()["upper"]);
+    if (has_scale) {
+      const std::string s = r.String("scale", r.node()["scale"]);
+      try {
+        p.scale = ParameterScaleFromString(s);
+      } catch (const std::invalid_argument&) {
+        r.Fail(r.KeyPath("scale"), r.node()["scale"], "must be linear or log");
+      }
+    }
+    if (!InRange(*spec, p.lower)) {
+      r.Fail(r.KeyPath("lower"), r.node()["lower"],
+             fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
+    }
+    if (!InRange(*spec, p.upper)) {
+      r.Fail(r.KeyPath("upper"), r.node()["upper"],
+             fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
+    }
+    if (!(p.lower < p.upper)) {
+      r.Fail(r.KeyPath("upper"), r.node()["upper"],
+             fmt::format("must be > {} ({})", r.KeyPath("lower"), p.lower));
+    }
+    if (p.scale == ParameterScale::kLog && !(p.lower > 0.0)) {
+      r.Fail(r.KeyPath("lower"), r.node()["lower"], "must be > 0 on a log scale");
+    }
+  }
+  r.Finish();
+  return p;
+}
+
+// Every entry of the parameters list, each entry's error kept in `errors`;
+// then whether every model parameter is listed and one searched.
+std::vector<ParameterSetting> ReadParameters(MapReader& top, const std::vector<ParameterSpec>& specs,
+                                             SpecErrors& errors) {
   const YAML::Node list =
       top.Require("parameters", "a list of {name, lower, upper, scale} or {name, fixed}");
   if (!list.IsSequence()) top.Fail("parameters", list, "expected a list of parameters");
-  std::vector<std::string> known;
-  for (const auto& s : specs) known.push_back(s.name);
   std::vector<ParameterSetting> out;
+  bool every_entry_read = true;
   for (size_t i = 0; i < list.size(); ++i) {
-    const std::string path = fmt::format("parameters[{}]", i);
-    MapReader r(list[i], path, &top.source());
-    ParameterSetting p;
-    const YAML::Node name_node = r.Require("name", fmt::format("one of {}", fmt::join(known, ", ")));
-    p.name = r.String("name", name_node);
-    const auto spec = std::find_if(specs.begin(), specs.end(),
-                                   [&](const ParameterSpec& s) { return s.name == p.name; });
-    if (spec == specs.end()) {
-      r.Fail(r.KeyPath("name"), name_node,
-             fmt::format("unknown parameter; the model's are {}", fmt::join(known, ", ")));
-    }
-    for (const auto& q : out) {
-      if (q.name == p.name) r.Fail(r.KeyPath("name"), name_node, "parameter listed twice");
-    }
-    const bool has_fixed = r.Has("fixed");
-    const bool has_lower = r.Has("lower");
-    const bool has_upper = r.Has("upper");
-    const bool has_scale = r.Has("scale");
-    if (has_fixed) {
-      if (has_lower || has_upper || has_scale) {
-        const std::string other = has_lower ? "lower" : has_upper ? "upper" : "scale";
-        r.Fail(r.KeyPath(other), r.node()[other],
-               "a fixed parameter takes no lower, upper or scale (give fixed, or lower and upper)");
-      }
-      const double v = r.Double("fixed", r.node()["fixed"]);
-      if (!InRange(*spec, v)) {
-        r.Fail(r.KeyPath("fixed"), r.node()["fixed"],
-               fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
-      }
-      p.fixed = v;
-    } else {
-      if (!has_lower) r.Missing(r.KeyPath("lower"), "a searched parameter needs lower and upper (or give fixed)");
-      if (!has_upper) r.Missing(r.KeyPath("upper"), "a searched parameter needs lower and upper (or give fixed)");
-      p.lower = r.Double("lower", r.node()["lower"]);
-      p.upper = r.Double("upper", r.node()["upper"]);
-      if (has_scale) {
-        const std::string s = r.String("scale", r.node()["scale"]);
-        try {
-          p.scale = ParameterScaleFromString(s);
-        } catch (const std::invalid_argument&) {
-          r.Fail(r.KeyPath("scale"), r.node()["scale"], "must be linear or log");
-        }
-      }
-      if (!InRange(*spec, p.lower)) {
-        r.Fail(r.KeyPath("lower"), r.node()["lower"],
-               fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
-      }
-      if (!InRange(*spec, p.upper)) {
-        r.Fail(r.KeyPath("upper"), r.node()["upper"],
-               fmt::format("must be within {}'s allowed range {}", p.name, AllowedRange(*spec)));
-      }
-      if (!(p.lower < p.upper)) {
-        r.Fail(r.KeyPath("upper"), r.node()["upper"],
-               fmt::format("must be > {} ({})", r.KeyPath("lower"), p.lower));
-      }
-      if (p.scale == ParameterScale::kLog && !(p.lower > 0.0)) {
-        r.Fail(r.KeyPath("lower"), r.node()["lower"], "must be > 0 on a log scale");
-      }
-    }
-    r.Finish();
-    out.push_back(std::move(p));
+    every_entry_read &= errors.Check([&] { out.push_back(ReadParameter(top, list[i], i, specs, out)); });
   }
+  if (!every_entry_read) return out;  // what is missing would only echo the entries' errors
   for (const auto& s : specs) {
     const bool listed = std::any_of(out.begin(), out.end(),
                                     [&](const ParameterSetting& p) { return p.name == s.name; });
@@ -256,24 +301,38 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
   spec.source = source;
   spec.base_dir = std::filesystem::absolute(base_dir).lexically_normal();
   MapReader top(root, "", &spec.source);
+  SpecErrors errors;
 
-  const YAML::Node name = top.Require("name", "a job name (letters, digits, '_', '-', '.')");
-  spec.name = top.String("name", name);
-  if (!ValidName(spec.name)) top.Fail("name", name, "must be non-empty letters, digits, '_', '-', '.'");
+  errors.Check([&] {
+    const YAML::Node name = top.Require("name", "a job name (letters, digits, '_', '-', '.')");
+    spec.name = top.String("name", name);
+    if (!ValidName(spec.name)) top.Fail("name", name, "must be non-empty letters, digits, '_', '-', '.'");
+  });
 
-  spec.train = ReadRecordings(top, "train", true, spec.base_dir, options.recordings);
-  spec.holdout = ReadRecordings(top, "holdout", false, spec.base_dir, options.recordings);
+  errors.Check([&] { spec.train = ReadRecordings(top, "train", true, spec.base_dir, options.recordings); });
+  errors.Check(
+      [&] { spec.holdout = ReadRecordings(top, "holdout", false, spec.base_dir, options.recordings); });
 
-  if (top.Has("model")) {
-    ReadModel(MapReader(top.Get("model"), "model", &spec.source), &spec.model, catalog);
+  const bool model_read = errors.Check([&] {
+    if (top.Has("model")) {
+      ReadModel(MapReader(top.Get("model"), "model", &spec.source), &spec.model, catalog);
+    } else {
+      top.Get("model");
+    }
+  });
+  // The parameters a model needs depend on its effects.
+  bool parameters_read = false;
+  if (model_read) {
+    spec.parameter_specs = catalog.ParameterSpecsFor(spec.model.effects);
+    const size_t known_errors = errors.count();
+    errors.Check([&] { spec.parameters = ReadParameters(top, spec.parameter_specs, errors); });
+    parameters_read = errors.count() == known_errors;
   } else {
-    top.Get("model");
+    top.Get("parameters");
   }
-  spec.parameter_specs = catalog.ParameterSpecsFor(spec.model.effects);
-  spec.parameters = ReadParameters(top, spec.parameter_specs);
 
   // budget before optimizer: the optimiser's own budget defaults to it.
-  {
+  const bool budget_read = errors.Check([&] {
     MapReader b(top.Require("budget", "a map with evaluations (and optional wall_time_s)"), "budget",
                 &spec.source);
     const YAML::Node ev = b.Require("evaluations", "an integer >= 1");
@@ -286,23 +345,29 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
       spec.budget.wall_time_s = w;
     }
     b.Finish();
-  }
+  });
 
-  if (top.Has("seed")) {
-    const YAML::Node n = top.node()["seed"];
-    try {
-      if (!n.IsScalar() || n.Scalar().empty() || n.Scalar()[0] == '-') throw YAML::Exception({}, "");
-      spec.seed = n.as<uint64_t>();
-    } catch (const YAML::Exception&) {
-      top.Fail("seed", n, "expected an integer >= 0");
+  errors.Check([&] {
+    if (top.Has("seed")) {
+      const YAML::Node n = top.node()["seed"];
+      try {
+        if (!n.IsScalar() || n.Scalar().empty() || n.Scalar()[0] == '-') throw YAML::Exception({}, "");
+        spec.seed = n.as<uint64_t>();
+      } catch (const YAML::Exception&) {
+        top.Fail("seed", n, "expected an integer >= 0");
+      }
     }
-  }
-  top.Read("threads", &spec.threads);
-  if (spec.threads < 0) top.Fail("threads", top.node()["threads"], "must be >= 0 (0: all cores)");
-  top.Read("processes", &spec.processes);
-  if (spec.processes < 1) top.Fail("processes", top.node()["processes"], "must be >= 1");
+  });
+  errors.Check([&] {
+    top.Read("threads", &spec.threads);
+    if (spec.threads < 0) top.Fail("threads", top.node()["threads"], "must be >= 0 (0: all cores)");
+  });
+  errors.Check([&] {
+    top.Read("processes", &spec.processes);
+    if (spec.processes < 1) top.Fail("processes", top.node()["processes"], "must be >= 1");
+  });
 
-  {
+  const bool optimizer_read = errors.Check([&] {
     MapReader o(top.Require("optimizer", "a map with name and settings"), "optimizer", &spec.source);
     const std::vector<std::string> names = search::OptimizerNames();
     const YAML::Node n = o.Require("name", fmt::format("one of {}", fmt::join(names, ", ")));
@@ -316,92 +381,104 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
       spec.optimizer.settings = YamlToJson(settings);
     }
     o.Finish();
-    std::string filled;
-    const std::string budget_key = search::BudgetSetting(spec.optimizer.name);
-    if (!budget_key.empty() && !spec.optimizer.settings.contains(budget_key)) {
-      filled = fmt::format(" ({} = {} filled in from budget.evaluations)", budget_key,
-                           spec.budget.evaluations);
-    }
-    spec.optimizer.settings =
-        search::WithBudget(spec.optimizer.name, std::move(spec.optimizer.settings), spec.budget.evaluations);
-    try {
-      (void)MakeRequestOptimizer(spec);
-    } catch (const std::exception& e) {
-      throw JobSpecError(fmt::format("{}: optimizer.settings = {}{}: {}", spec.source,
-                                     spec.optimizer.settings.dump(), filled, e.what()));
-    }
-  }
-
-  if (top.Has("checkpoint")) {
-    MapReader c(top.Get("checkpoint"), "checkpoint", &spec.source);
-    c.Read("every_evaluations", &spec.checkpoint.every_evaluations);
-    if (spec.checkpoint.every_evaluations < 0) {
-      c.Fail("checkpoint.every_evaluations", c.node()["every_evaluations"], "must be >= 0 (0: off)");
-    }
-    c.Read("every_seconds", &spec.checkpoint.every_seconds);
-    if (spec.checkpoint.every_seconds < 0.0) {
-      c.Fail("checkpoint.every_seconds", c.node()["every_seconds"], "must be >= 0 (0: off)");
-    }
-    if (spec.checkpoint.every_evaluations == 0 && spec.checkpoint.every_seconds == 0.0) {
-      c.Fail("checkpoint", c.node(), "every_evaluations and every_seconds cannot both be 0");
-    }
-    c.Finish();
-  } else {
-    top.Get("checkpoint");
-  }
-
-  if (top.Has("failure_policy")) {
-    MapReader f(top.Get("failure_policy"), "failure_policy", &spec.source);
-    FailurePolicy& fp = spec.failure_policy;
-    if (f.Has("mode")) {
-      const YAML::Node n = f.node()["mode"];
+  });
+  // The optimiser is made with the budget and the search space.
+  if (optimizer_read && budget_read && parameters_read) {
+    errors.Check([&] {
+      std::string filled;
+      const std::string budget_key = search::BudgetSetting(spec.optimizer.name);
+      if (!budget_key.empty() && !spec.optimizer.settings.contains(budget_key)) {
+        filled = fmt::format(" ({} = {} filled in from budget.evaluations)", budget_key,
+                             spec.budget.evaluations);
+      }
+      spec.optimizer.settings =
+          search::WithBudget(spec.optimizer.name, std::move(spec.optimizer.settings), spec.budget.evaluations);
       try {
-        fp.mode = FailureModeFromString(f.String("mode", n));
-      } catch (const std::invalid_argument&) {
-        f.Fail("failure_policy.mode", n, "must be penalty, retry or abort");
+        (void)MakeRequestOptimizer(spec);
+      } catch (const std::exception& e) {
+        throw JobSpecError(fmt::format("{}: optimizer.settings = {}{}: {}", spec.source,
+                                       spec.optimizer.settings.dump(), filled, e.what()));
       }
-    }
-    if (f.Has("penalty_score")) fp.penalty_score = f.Double("penalty_score", f.node()["penalty_score"]);
-    if (f.Has("max_retries")) {
-      const YAML::Node n = f.node()["max_retries"];
-      if (fp.mode != FailureMode::kRetry) {
-        f.Fail("failure_policy.max_retries", n,
-               fmt::format("only used with mode retry (mode is {})", ToString(fp.mode)));
-      }
-      f.Read("max_retries", &fp.max_retries);
-      if (fp.max_retries < 1) f.Fail("failure_policy.max_retries", n, "must be >= 1");
-    }
-    if (fp.mode == FailureMode::kAbort) fp.abort_after = 1;
-    f.Read("abort_after", &fp.abort_after);
-    if (fp.abort_after < 0) f.Fail("failure_policy.abort_after", f.node()["abort_after"], "must be >= 0 (0: never)");
-    if (fp.mode == FailureMode::kAbort && fp.abort_after < 1) {
-      f.Fail("failure_policy.abort_after", f.node()["abort_after"], "must be >= 1 with mode abort");
-    }
-    f.Finish();
-  } else {
-    top.Get("failure_policy");
+    });
   }
 
-  spec.results.store = spec.base_dir / "results" / (spec.name + ".sqlite");
-  spec.results.out_dir = spec.base_dir / "results" / spec.name;
-  if (top.Has("results")) {
-    MapReader r(top.Get("results"), "results", &spec.source);
-    std::string store, out_dir;
-    r.Read("store", &store);
-    r.Read("out_dir", &out_dir);
-    if (r.Has("store")) {
-      if (store.empty()) r.Fail("results.store", r.node()["store"], "must be a file path");
-      spec.results.store = Resolve(spec.base_dir, store);
+  errors.Check([&] {
+    if (top.Has("checkpoint")) {
+      MapReader c(top.Get("checkpoint"), "checkpoint", &spec.source);
+      c.Read("every_evaluations", &spec.checkpoint.every_evaluations);
+      if (spec.checkpoint.every_evaluations < 0) {
+        c.Fail("checkpoint.every_evaluations", c.node()["every_evaluations"], "must be >= 0 (0: off)");
+      }
+      c.Read("every_seconds", &spec.checkpoint.every_seconds);
+      if (spec.checkpoint.every_seconds < 0.0) {
+        c.Fail("checkpoint.every_seconds", c.node()["every_seconds"], "must be >= 0 (0: off)");
+      }
+      if (spec.checkpoint.every_evaluations == 0 && spec.checkpoint.every_seconds == 0.0) {
+        c.Fail("checkpoint", c.node(), "every_evaluations and every_seconds cannot both be 0");
+      }
+      c.Finish();
+    } else {
+      top.Get("checkpoint");
     }
-    if (r.Has("out_dir")) {
-      if (out_dir.empty()) r.Fail("results.out_dir", r.node()["out_dir"], "must be a folder path");
-      spec.results.out_dir = Resolve(spec.base_dir, out_dir);
+  });
+
+  errors.Check([&] {
+    if (top.Has("failure_policy")) {
+      MapReader f(top.Get("failure_policy"), "failure_policy", &spec.source);
+      FailurePolicy& fp = spec.failure_policy;
+      if (f.Has("mode")) {
+        const YAML::Node n = f.node()["mode"];
+        try {
+          fp.mode = FailureModeFromString(f.String("mode", n));
+        } catch (const std::invalid_argument&) {
+          f.Fail("failure_policy.mode", n, "must be penalty, retry or abort");
+        }
+      }
+      if (f.Has("penalty_score")) fp.penalty_score = f.Double("penalty_score", f.node()["penalty_score"]);
+      if (f.Has("max_retries")) {
+        const YAML::Node n = f.node()["max_retries"];
+        if (fp.mode != FailureMode::kRetry) {
+          f.Fail("failure_policy.max_retries", n,
+                 fmt::format("only used with mode retry (mode is {})", ToString(fp.mode)));
+        }
+        f.Read("max_retries", &fp.max_retries);
+        if (fp.max_retries < 1) f.Fail("failure_policy.max_retries", n, "must be >= 1");
+      }
+      if (fp.mode == FailureMode::kAbort) fp.abort_after = 1;
+      f.Read("abort_after", &fp.abort_after);
+      if (fp.abort_after < 0) f.Fail("failure_policy.abort_after", f.node()["abort_after"], "must be >= 0 (0: never)");
+      if (fp.mode == FailureMode::kAbort && fp.abort_after < 1) {
+        f.Fail("failure_policy.abort_after", f.node()["abort_after"], "must be >= 1 with mode abort");
+      }
+      f.Finish();
+    } else {
+      top.Get("failure_policy");
     }
-    r.Finish();
-  } else {
-    top.Get("results");
-  }
-  top.Finish();
+  });
+
+  errors.Check([&] {
+    spec.results.store = spec.base_dir / "results" / (spec.name + ".sqlite");
+    spec.results.out_dir = spec.base_dir / "results" / spec.name;
+    if (top.Has("results")) {
+      MapReader r(top.Get("results"), "results", &spec.source);
+      std::string store, out_dir;
+      r.Read("store", &store);
+      r.Read("out_dir", &out_dir);
+      if (r.Has("store")) {
+        if (store.empty()) r.Fail("results.store", r.node()["store"], "must be a file path");
+        spec.results.store = Resolve(spec.base_dir, store);
+      }
+      if (r.Has("out_dir")) {
+        if (out_dir.empty()) r.Fail("results.out_dir", r.node()["out_dir"], "must be a folder path");
+        spec.results.out_dir = Resolve(spec.base_dir, out_dir);
+      }
+      r.Finish();
+    } else {
+      top.Get("results");
+    }
+  });
+  errors.Check([&] { top.Finish(); });
+  errors.ThrowIfAny(spec.source);
   return spec;
 }
 

@@ -298,6 +298,36 @@ TEST(JobSpec, AMisspeltRequiredKeyIsNamed) {
   EXPECT_CONTAINS(m, "found 'budjet': a misspelling?");
 }
 
+TEST(JobSpec, ASpecWithSeveralErrorsNamesEveryOne) {
+  const std::string m = ErrorOf([](YAML::Node& r) {
+    r["name"] = "bad name";
+    r["train"][0] = "nope";
+    r["parameters"][0]["lower"] = -1;  // on a log scale
+    r["parameters"][2]["upper"] = 0.5;  // below lower
+    r["budget"]["evaluations"] = 0;
+    r["optimizer"]["name"] = "simplex";
+    r["checkpoint"]["every_seconds"] = -1;
+    r["colour"] = "blue";
+  });
+  EXPECT_CONTAINS(m, "job.yaml: 8 errors:\n");
+  EXPECT_CONTAINS(m, "job.yaml: name = 'bad name'");
+  EXPECT_CONTAINS(m, "job.yaml: train[0] = 'nope'");
+  EXPECT_CONTAINS(m, "job.yaml: parameters[0].lower");
+  EXPECT_CONTAINS(m, "job.yaml: parameters[2].upper = '0.5'");
+  EXPECT_CONTAINS(m, "job.yaml: budget.evaluations = '0'");
+  EXPECT_CONTAINS(m, "job.yaml: optimizer.name = 'simplex'");
+  EXPECT_CONTAINS(m, "job.yaml: checkpoint.every_seconds = '-1'");
+  EXPECT_CONTAINS(m, "job.yaml: colour = 'blue': unknown key");
+  // One error is one line, as before.
+  const std::string one = ErrorOf([](YAML::Node& r) { r["budget"]["evaluations"] = 0; });
+  EXPECT_EQ(one.find('\n'), std::string::npos) << one;
+  // The parameters are not checked against a model that is itself wrong:
+  // their errors would only echo it.
+  const std::string effect = ErrorOf([](YAML::Node& r) { r["model"]["effects"].push_back("nope"); });
+  EXPECT_CONTAINS(effect, "model.effects[0] = 'nope'");
+  EXPECT_EQ(effect.find("parameters"), std::string::npos) << effect;
+}
+
 TEST(JobSpec, UnknownOptimiserIsNamed) {
   const std::string m = ErrorOf([](YAML::Node& r) { r["optimizer"]["name"] = "simplex"; });
   EXPECT_CONTAINS(m, "optimizer.name = 'simplex': unknown optimiser");

@@ -7,6 +7,11 @@
 // Every error is a JobSpecError whose message names the file, the field path
 // (`parameters[2].upper`), the value found and the rule violated, e.g.
 //   job.yaml: parameters[2].upper = 0.5: must be > lower (2)
+// A spec with errors in several parts (name, recordings, model, each
+// parameter, budget, optimiser, ...) is one JobSpecError naming all of them,
+// one a line after "job.yaml: N errors:". A part that depends on another
+// (the parameters on the model's effects, the optimiser on the budget and
+// the parameters) is checked only when that one is sound.
 //
 // A job spec is a calibration request (calibration_request.h: the search
 // space, optimiser, budget, seed, checkpoints, failure policy) plus the
