@@ -37,16 +37,31 @@ constexpr const char* kFormat = "sponge-recording/1";
 
 // `relative` (the value of key `key` of recording.json `file`) resolved in
 // the recording's folder; a path that is absolute or leaves the folder
-// (dataset.md: paths relative to the folder) is an error naming the key.
+// (dataset.md: paths relative to the folder), also through a symbolic link
+// in it, is an error naming the key. (A link to the recording folder itself
+// is fine: both sides are resolved.)
 fs::path InsideFolder(const fs::path& file, const std::string& key, const fs::path& folder,
                       const std::string& relative) {
   const fs::path given(relative);
   const fs::path normal = given.lexically_normal();
-  if (given.is_absolute() || normal.empty() || *normal.begin() == "..") {
-    Fail(file, fmt::format("key '{}' = '{}': must be a path inside the recording folder", key,
-                           relative));
+  const auto outside = [&](const std::string& how) {
+    Fail(file, fmt::format("key '{}' = '{}': must be a path inside the recording folder{}", key,
+                           relative, how));
+  };
+  if (given.is_absolute() || normal.empty() || *normal.begin() == "..") outside("");
+  const fs::path resolved = (folder / normal).lexically_normal();
+  // weakly_canonical resolves the links of the part that exists (an image
+  // sequence's pattern does not).
+  std::error_code ec;
+  const fs::path real_folder = fs::weakly_canonical(folder, ec);
+  const fs::path real_path = ec ? fs::path() : fs::weakly_canonical(resolved, ec);
+  if (!ec) {
+    const fs::path inside = real_path.lexically_relative(real_folder);
+    if (inside.empty() || *inside.begin() == "..") {
+      outside(fmt::format(" (a symbolic link leads to {})", real_path.string()));
+    }
   }
-  return (folder / normal).lexically_normal();
+  return resolved;
 }
 
 std::string TypeName(const json& v) { return v.type_name(); }

@@ -401,6 +401,35 @@ TEST(RecordingError, APathOutsideTheFolderIsNamed) {
   }
 }
 
+TEST(RecordingError, ASymbolicLinkOutOfTheFolderIsNamed) {
+  const fs::path elsewhere = testing::ScratchDir("rec_elsewhere");
+  {
+    RecordingFixture fx("rec");
+    WriteText(elsewhere / "track.csv", fx.track);
+    fs::create_symlink(elsewhere / "track.csv", fx.dir / "link.csv");
+    fx.doc["track"] = "link.csv";
+    const std::string message = fx.LoadError();
+    EXPECT_HAS(message, fx.JsonPath());
+    EXPECT_HAS(message, "key 'track' = 'link.csv': must be a path inside the recording folder");
+    EXPECT_HAS(message, "a symbolic link leads to " + (elsewhere / "track.csv").string());
+  }
+  {
+    RecordingFixture fx("rec");
+    fs::copy_file(fx.dir / "video.avi", elsewhere / "video.avi");
+    fs::create_directory_symlink(elsewhere, fx.dir / "media");
+    fx.doc["video"] = "media/video.avi";
+    const std::string message = fx.LoadError();
+    EXPECT_HAS(message, "key 'video' = 'media/video.avi': must be a path inside the recording folder");
+  }
+  // A link to the recording folder itself, or inside it, is fine.
+  RecordingFixture fx("rec");
+  fs::create_symlink("track.csv", fx.dir / "inner.csv");
+  fx.doc["track"] = "inner.csv";
+  fx.Write();
+  fs::create_directory_symlink(fx.dir, elsewhere / "linked_recording");
+  EXPECT_NO_THROW(LoadRecording(elsewhere / "linked_recording"));
+}
+
 TEST(RecordingError, ATrackThatIsNoRegularFileIsNamed) {
   RecordingFixture fx("rec");
   fx.doc["track"] = "endless";
