@@ -7,7 +7,8 @@
 //    longer exists, is taken over;
 //  - the heartbeat is renewed, and a holder taken over notices;
 //  - a job left running is shown as interrupted once its holder stopped;
-//  - resume refuses a recording whose files changed, naming each file.
+//  - resume refuses a recording whose files changed, naming each file;
+//  - resume of a finished job writes its report again.
 
 #include "calib/jobs/job_commands.h"
 #include "calib/jobs/job_inputs.h"
@@ -264,6 +265,24 @@ TEST(JobInputs, ResumeOfAnUnchangedJobGoesOn) {
   EXPECT_FALSE(ResultStore(spec.results.store).JobInputs(1).empty());
   options.wall_time_s.reset();
   EXPECT_EQ(RunJob(spec, JobStart::kResume, options).run.status, JobStatus::kFinished);
+}
+
+TEST(JobCommands, ResumeOfAFinishedJobWritesItsReportAgain) {
+  // A report folder that could not be written when the job finished (or was
+  // deleted since) is had without running anything again.
+  const fs::path dir = testing::ScratchDir("job_report_again");
+  const JobSpec spec = LockJobSpec(dir);
+  JobCommandOptions options = SyntheticOptions();
+  ASSERT_EQ(RunJob(spec, JobStart::kRun, options).run.status, JobStatus::kFinished);
+  EXPECT_FALSE(fs::exists(spec.results.out_dir / "summary.txt"));
+  options.write_report = true;
+  options.report_simulations = false;
+  const JobCommandResult again = RunJob(spec, JobStart::kResume, options);
+  EXPECT_EQ(again.run.status, JobStatus::kCreated) << "nothing run";
+  EXPECT_CONTAINS(again.run.stop_reason, "the job is already finished");
+  ASSERT_TRUE(again.report.has_value());
+  EXPECT_TRUE(fs::exists(spec.results.out_dir / "summary.txt"));
+  EXPECT_TRUE(fs::exists(spec.results.out_dir / "evaluations.csv"));
 }
 
 }  // namespace
