@@ -97,7 +97,8 @@ std::filesystem::path StorePath(const JobSpec& spec, const JobCommandOptions& op
 
 // Finds or creates the job for `start`; changes nothing in an existing job
 // (that waits for its lock).
-int64_t FindOrCreateJob(const JobSpec& spec, JobStart start, ResultStore& store) {
+int64_t FindOrCreateJob(const JobSpec& spec, JobStart start, ResultStore& store,
+                        const JobLockOptions& lock) {
   const std::optional<JobInfo> info = store.FindJob(spec.name);
   if (start == JobStart::kRun) {
     if (!info) return store.CreateJob(spec.name, ToJson(spec));
@@ -106,9 +107,9 @@ int64_t FindOrCreateJob(const JobSpec& spec, JobStart start, ResultStore& store)
       return info->id;
     }
     throw std::invalid_argument(fmt::format(
-        "{}: job '{}' already exists (status {}, {} evaluations): continue it with `calib resume "
+        "{}: job '{}' already exists ({}, {} evaluations): continue it with `calib resume "
         "{}`, or give the job another name or store",
-        store.path().string(), spec.name, ToString(info->status),
+        store.path().string(), spec.name, JobStatusText(store, *info, lock),
         store.EvaluationCount(info->id), spec.source));
   }
   if (!info) {
@@ -221,7 +222,7 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
   out.store = StorePath(spec, options);
   if (!out.store.parent_path().empty()) std::filesystem::create_directories(out.store.parent_path());
   ResultStore store(out.store);
-  out.job = FindOrCreateJob(spec, start, store);
+  out.job = FindOrCreateJob(spec, start, store, options.lock);
   // Before anything of the job changes: a second process is refused here.
   HeldJobLock lock(store, out.job, spec.name, options.lock);
   if (lock.taken_over()) {

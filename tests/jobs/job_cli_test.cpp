@@ -4,6 +4,8 @@
 //  - `calib run` killed with SIGKILL at random moments, several times, and
 //    resumed each time, ends with the history of an uninterrupted run;
 //  - `mpirun -np 3 calib run` gives the history of threads;
+//  - a second run or resume of a held job is refused naming its holder, a
+//    holder killed is shown as interrupted, and the resume takes over;
 //  - a corrupted checkpoint is reported and the job falls back past it;
 //  - progress is logged as plain lines when stderr is not a terminal;
 //  - `calib results` prints and exports, `calib best` writes a parameter
@@ -205,6 +207,39 @@ TEST_F(JobCli, SigkillAtRandomMomentsAndResumeGivesTheUninterruptedHistory) {
     EXPECT_CONTAINS(r.out, "status: finished");
   }
   testing::ExpectSameHistory(ReferenceHistory(), History(db), "killed and resumed");
+}
+
+TEST_F(JobCli, ASecondProcessIsRefusedAndAKilledHolderIsShownInterruptedAndResumed) {
+  const fs::path dir = testing::ScratchDir("job_cli_lock");
+  const fs::path db = dir / "locked.sqlite";
+  const auto calib = [&](const std::string& verb) {
+    return Args({verb, spec_->string(), "--store", db.string(), "--no-report", "--progress", "none"});
+  };
+  testing::ChildProcess first(calib("run"), dir);
+  while (!first.Exited() && !HasEvaluations(db)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_FALSE(first.Exited()) << "the job ended before it could be held";
+  first.Kill(SIGSTOP);  // paused, alive, holding the job
+  const std::string holder = fmt::format("by process {} on host '", first.pid());
+  for (const std::string verb : {"resume", "run"}) {
+    const testing::ProcessResult second = testing::RunProcess(calib(verb), dir);
+    EXPECT_EQ(second.exit_code, 2) << verb << ": " << second.err;
+    EXPECT_CONTAINS(second.err, holder);
+  }
+  const auto results = [&] {
+    return testing::RunProcess({kCalib, "results", spec_->string(), "--store", db.string()}, dir);
+  };
+  EXPECT_CONTAINS(results().out, fmt::format("status: running, by process {}", first.pid()));
+  first.Kill(SIGKILL);
+  EXPECT_EQ(first.Wait().signal, SIGKILL);
+  const testing::ProcessResult after = results();
+  EXPECT_CONTAINS(after.out, "status: interrupted (left running by process");
+  EXPECT_CONTAINS(after.out, "calib resume");
+  const testing::ProcessResult resumed = testing::RunProcess(calib("resume"), dir);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_CONTAINS(resumed.err, "took over the lock of process");
+  testing::ExpectSameHistory(ReferenceHistory(), History(db), "held, killed and resumed");
 }
 
 TEST_F(JobCli, CorruptedCheckpointIsReportedAndTheJobFallsBackPastIt) {
