@@ -378,6 +378,9 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
     const YAML::Node settings = o.Get("settings");
     if (settings.IsDefined() && !settings.IsNull()) {
       if (!settings.IsMap()) o.Fail("optimizer.settings", settings, "expected a map of settings");
+      // The optimiser checks the names; the reader names a repeated one,
+      // which the conversion to JSON would keep silently.
+      (void)o.Nested(settings, "optimizer.settings");
       spec.optimizer.settings = YamlToJson(settings);
     }
     o.Finish();

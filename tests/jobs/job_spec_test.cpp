@@ -286,6 +286,10 @@ TEST(JobSpec, ARepeatedKeyIsNamed) {
   nested.replace(nested.find("budget: {evaluations: 120,"), 26,
                  "budget: {evaluations: 120, evaluations: 5,");
   EXPECT_CONTAINS(error_of(nested), "budget.evaluations = '5': the key appears more than once");
+  std::string settings(kValidSpec);
+  settings.replace(settings.find("{population: 6,"), 15, "{population: 6, population: 8,");
+  EXPECT_CONTAINS(error_of(settings),
+                  "optimizer.settings.population = '8': the key appears more than once");
 }
 
 // A misspelt required key is named as such, not only as the key missing.
