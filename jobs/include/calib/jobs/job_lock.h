@@ -11,6 +11,8 @@
 //    killed process, a machine gone), or
 //  - it is on this host and its process no longer exists (SIGKILL, a
 //    crash): taken over at once, so a killed job resumes without waiting.
+//    (Hosts are told apart by name: containers that share a host name must
+//    also share the process table.)
 // A holder paused past stale_after_s (SIGSTOP, a suspended laptop) loses
 // its lock; it notices at its next heartbeat and stops resumably, but what
 // it wrote between losing the lock and noticing may clash with the new
