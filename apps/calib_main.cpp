@@ -71,8 +71,12 @@ void Finish(CommandSettings* settings, const std::string& integrator, const std:
 
 void PrintResult(const calib::EvaluationResult& result) {
   fmt::print("score (XOR pixels summed over frames): {}\n", result.xor_sum);
-  fmt::print("mean IoU: {:.4f} over {} of {} frames\n", result.mean_iou, result.frames.size(),
-             result.num_frames);
+  if (result.ok()) {
+    fmt::print("mean IoU: {:.4f} over {} frames\n", result.mean_iou, result.num_frames);
+  } else {
+    fmt::print("mean IoU: {:.4f} over {} frames, the {} not simulated counting 0\n",
+               result.mean_iou, result.num_frames, result.num_frames - result.frames.size());
+  }
   if (result.ok()) {
     fmt::print("status: ok\n");
   } else {

@@ -1,6 +1,7 @@
 // Evaluating candidates on the reference scene: the score is the sum of the
 // per-frame XOR, identical input gives bit-identical results, a blow-up is a
-// failed result with its reason and frame (never an exception), and the
+// failed result with its reason and frame (never an exception) whose mean
+// IoU counts the frames it did not simulate as 0, and the
 // scene is built from the recording as the spec says.
 
 #include "calib/evaluator/evaluation.h"
@@ -78,6 +79,24 @@ TEST(Evaluator, BlowUpIsAFailedResultWithReasonAndFrame) {
   EXPECT_EQ(static_cast<int>(result.frames.size()), result.failure_frame);
   // The same evaluator still scores the next candidate normally.
   EXPECT_TRUE(evaluator.Evaluate(bench::ReferenceParameters()).ok());
+}
+
+TEST(Evaluator, AFailedResultsMeanIouCountsTheFramesNotSimulatedAsZero) {
+  Evaluator evaluator(Reference(), {});
+  ModelParameters p = bench::ReferenceParameters();
+  p.k_distance = 1e12;
+  p.mass = 1e-9;
+  const EvaluationResult result = evaluator.Evaluate(p);
+  ASSERT_FALSE(result.ok());
+  ASSERT_FALSE(result.frames.empty());
+  ASSERT_LT(result.frames.size(), 60u);
+  double iou = 0.0;
+  for (const FrameScore& f : result.frames) iou += f.iou;
+  // Frame 0 is the rest shape (IoU 1): averaged over the frames simulated
+  // alone, the failure would look as good as a perfect fit.
+  EXPECT_NEAR(result.mean_iou, iou / 60.0, 1e-15);
+  EXPECT_LT(result.mean_iou, 0.5 * iou / static_cast<double>(result.frames.size()))
+      << "a failure at frame " << result.failure_frame << " of 60";
 }
 
 TEST(BuildScene, TakesObstaclesForceAndClampsFromTheRecording) {

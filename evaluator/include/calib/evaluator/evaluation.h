@@ -74,7 +74,10 @@ struct EvaluationResult {
   std::vector<FrameScore> frames;
   int num_frames = 0;     ///< frames in the recording
   int64_t xor_sum = 0;    ///< the score: XOR pixels summed over `frames`
-  double mean_iou = 0.0;  ///< over `frames`
+  /// Over all num_frames frames, a frame not simulated (after a failure)
+  /// counting 0: a candidate that failed at frame 1 of 330 must not look
+  /// good (when kOk, the mean over `frames`).
+  double mean_iou = 0.0;
 
   bool ok() const { return status == EvaluationStatus::kOk; }
 };
@@ -161,7 +164,7 @@ EvaluationResult Evaluator::Run(OnFrame&& on_frame) {
   } else {
     result.status = EvaluationStatus::kOk;
   }
-  if (!result.frames.empty()) result.mean_iou = iou_sum / result.frames.size();
+  if (num_frames > 0) result.mean_iou = iou_sum / num_frames;
   return result;
 }
 
