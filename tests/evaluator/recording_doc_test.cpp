@@ -5,6 +5,7 @@
 
 #include "calib/evaluator/recording.h"
 
+#include "support/process_support.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -21,13 +22,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string ReadFile(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 // The backquoted names in the first column of the table under `heading`,
 // skipping templates such as `<name>_x`.
@@ -68,14 +62,14 @@ std::string LoadError(const fs::path& dir) {
   return "";
 }
 
-const std::string kPage = ReadFile(fs::path(CALIB_SOURCE_DIR) / "docs" / "recording.md");
+const std::string kPage = testing::ReadText(fs::path(CALIB_SOURCE_DIR) / "docs" / "recording.md");
 
 TEST(RecordingDoc, EveryListedKeyIsReadByTheReader) {
   const std::vector<std::string> keys = TableNames(kPage, "## recording.json");
   EXPECT_GE(keys.size(), 12u) << "the table lists every key of shared/spec/dataset.md";
   for (const std::string& key : keys) {
     const fs::path dir = CopyExample("recording_doc_key");
-    json doc = json::parse(ReadFile(dir / "recording.json"));
+    json doc = json::parse(testing::ReadText(dir / "recording.json"));
     // A value of the wrong type: the reader names every key it reads.
     const json wrong = key == "object" ? json(5) : json{{"wrong", true}};
     const size_t dot = key.find('.');
@@ -96,7 +90,7 @@ TEST(RecordingDoc, EveryListedColumnIsReadByTheReader) {
   EXPECT_EQ(columns, (std::vector<std::string>{"frame", "force_x", "force_y"}));
   for (const std::string& column : columns) {
     const fs::path dir = CopyExample("recording_doc_column");
-    std::string track = ReadFile(dir / "track.csv");
+    std::string track = testing::ReadText(dir / "track.csv");
     const size_t at = track.find(column);
     ASSERT_LT(at, track.find('\n')) << "the example's header lacks " << column;
     track.replace(at, column.size(), "unread");  // the column renamed away

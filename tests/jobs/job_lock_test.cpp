@@ -15,6 +15,7 @@
 #include "calib/jobs/job_lock.h"
 #include "calib/jobs/job_report.h"
 #include "jobs/job_test_support.h"
+#include "support/process_support.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -215,16 +216,11 @@ void ExpectResumeRefusesAChangeTo(const std::string& label, const std::string& f
   EXPECT_EQ(store.FindJob("locked")->status, JobStatus::kStopped) << label << ": left as it was";
 }
 
-std::string Read(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 TEST(JobInputs, ResumeRefusesAChangedTrackNamingIt) {
   ExpectResumeRefusesAChangeTo(
       "track", "track.csv",
       [](const fs::path& f) {
-        std::string text = Read(f);
+        std::string text = testing::ReadText(f);
         const size_t digit = text.find_first_of("123456789", text.find('\n'));
         text[digit] = text[digit] == '1' ? '2' : '1';  // the same size, another value
         std::ofstream(f, std::ios::binary) << text;
@@ -236,7 +232,7 @@ TEST(JobInputs, ResumeRefusesAChangedRecordingJsonNamingIt) {
   ExpectResumeRefusesAChangeTo(
       "json", "recording.json",
       [](const fs::path& f) {
-        std::string text = Read(f);
+        std::string text = testing::ReadText(f);
         text.replace(text.find("Synthetic"), 9, "Different recording");
         std::ofstream(f, std::ios::binary) << text;
       },
