@@ -5,8 +5,9 @@ time, and check that it ends with the history of an uninterrupted run.
     scripts/kill-soak.py [--calib build/apps/calib] [--kills 50] [--seed 1]
                          [--evaluations 600] [--work DIR]
 
-The job is CMA-ES over the base model on examples/push_centre (40 px mesh
-edges, 4 substeps, 2 threads, a checkpoint every 4 evaluations). Each round
+The job is examples/jobs/push_centre_cmaes.yaml made small: CMA-ES over the
+base model on examples/push_centre only, 40 px mesh edges, 4 substeps,
+generations of 4, 2 threads, a checkpoint every 4 evaluations. Each round
 starts `calib run` (then `calib resume`), waits until it has recorded
 something new, waits a random 0..0.1 s more and sends SIGKILL; the next
 resume takes over the killed process's lock at once. After the last kill a
@@ -26,26 +27,27 @@ import sys
 import tempfile
 import time
 
+import yaml  # python3-yaml (scripts/install-deps.sh)
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
-JOB_YAML = """name: soak
-train: [{recording}]
-model:
-  substeps: 4
-  mesh: {{edge_length_px: 40}}
-parameters:
-  - {{name: k_D,   lower: 10,   upper: 5000, scale: log}}
-  - {{name: k_d,   lower: 0.01, upper: 50,   scale: log}}
-  - {{name: k_A,   lower: 1,    upper: 5000, scale: log}}
-  - {{name: k_phi, lower: 0.1,  upper: 1000, scale: log}}
-  - {{name: mass,  fixed: 0.2}}
-  - {{name: tau,   lower: 0,    upper: 0.5}}
-optimizer: {{name: cmaes, settings: {{population: 4, initial_sigma: 0.3}}}}
-budget: {{evaluations: {evaluations}}}
-seed: 3
-threads: 2
-checkpoint: {{every_evaluations: 4, every_seconds: 0}}
-"""
+EXAMPLE = os.path.join(REPO, "examples", "jobs", "push_centre_cmaes.yaml")
+
+
+def soak_spec(evaluations):
+    """The example job made small: the train recording only, coarse mesh, few
+    substeps, generations of 4, a checkpoint every 4 evaluations."""
+    with open(EXAMPLE) as f:
+        spec = yaml.safe_load(f)
+    spec["name"] = "soak"
+    spec["train"] = [os.path.join(REPO, "examples", "push_centre")]
+    del spec["holdout"], spec["results"]
+    spec["model"].update({"substeps": 4, "mesh": {"edge_length_px": 40}})
+    spec["optimizer"]["settings"]["population"] = 4
+    spec["budget"] = {"evaluations": evaluations}
+    spec.update({"seed": 3, "threads": 2,
+                 "checkpoint": {"every_evaluations": 4, "every_seconds": 0}})
+    return yaml.safe_dump(spec, sort_keys=False)
 
 HISTORY = (
     "SELECT e.id, e.x_json, e.parameters_json, e.status, e.score, e.mean_iou, e.iou_min, "
@@ -76,8 +78,7 @@ def main():
     os.makedirs(work, exist_ok=True)
     spec = os.path.join(work, "soak.yaml")
     with open(spec, "w") as f:
-        f.write(JOB_YAML.format(recording=os.path.join(REPO, "examples", "push_centre"),
-                                evaluations=args.evaluations))
+        f.write(soak_spec(args.evaluations))
     common = ["--no-report", "--progress", "none", "--cache-dir", os.path.join(work, "cache")]
     log = open(os.path.join(work, "calib.log"), "w")
 
