@@ -31,6 +31,8 @@ struct LoopCli {
   double min_confidence = kDefaults.min_confidence;
   int overlays = kDefaults.overlays_per_recording;
   int equally_good_fits = kDefaults.equally_good_fits;
+  double fdr = kDefaults.false_discovery_rate;
+  double held_out_stretch = kDefaults.held_out_stretch;
   int restarts = kDefaults.restarts;
   std::string cache_dir;
   bool no_cache = false;
@@ -81,10 +83,20 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
                   "hypotheses below this confidence are not tried")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  cmd->add_option("--fdr", cli->fdr,
+                  "false-discovery rate of the keep rule's test, corrected for every hypothesis "
+                  "tried (Benjamini-Hochberg)")
+      ->check(CLI::Range(0.001, 0.5))
+      ->capture_default_str();
+  cmd->add_option("--held-out-stretch", cli->held_out_stretch,
+                  "without --holdout: the share of each training video, at its end, held out "
+                  "(calibrated on the frames before)")
+      ->check(CLI::Range(0.05, 0.95))
+      ->capture_default_str();
   cmd->add_option("--equally-good-fits", cli->equally_good_fits,
-                  "fits of a model as good as its best on the training recordings (within "
-                  "max(segmentation noise, 1%)) re-scored on the held-out recordings; an "
-                  "effect's drop must also pass between their medians (0: the best fits only)")
+                  "report only: fits of a model as good as its best on the training recordings "
+                  "(within max(segmentation noise, 1%)) re-scored on the held-out recordings "
+                  "(0: none)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--restarts", cli->restarts,
@@ -133,6 +145,8 @@ std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) 
   options.min_confidence = cli.min_confidence;
   options.overlays_per_recording = cli.overlays;
   options.equally_good_fits = cli.equally_good_fits;
+  options.false_discovery_rate = cli.fdr;
+  options.held_out_stretch = cli.held_out_stretch;
   options.restarts = cli.restarts;
   options.write_html = !cli.no_html;
   options.simulation.outline_contact = cli.outline_contact;

@@ -217,6 +217,15 @@ std::string Params(const ParameterValues& values) {
 }
 
 // The held-out spread of a model's equally good fits, for its reason cell.
+// The keep rule's test of a tried stage, e.g. "<br>p = 0.0004, significant
+// over 3 hypotheses".
+std::string TestText(const StageTest& t) {
+  if (t.frames == 0) return "";
+  return fmt::format("<br>p = {:.4f} ({} frames, {} blocks), {} over {} hypotheses", t.p_value,
+                     t.frames, t.blocks, t.significant ? "significant" : "not significant",
+                     t.hypotheses);
+}
+
 std::string EquallyGoodText(const EquallyGoodFits& g) {
   if (g.fits == 0) return "";
   return fmt::format(
@@ -304,8 +313,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
   for (const ReportStage& s : report.stages) {
     h << "<tr class=\"" << ToString(s.decision) << "\"><td>" << Escape(s.name) << "</td><td>"
       << Escape(s.effect_tried) << "</td><td>" << ToString(s.decision) << "</td><td>"
-      << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << "</td><td>"
-      << Escape(s.reason) << EquallyGoodText(s.equally_good)
+      << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << TestText(s.test)
+      << "</td><td>" << Escape(s.reason) << EquallyGoodText(s.equally_good)
       << RestartsText(s.restart_training_xor) << "</td><td>" << Params(s.parameters)
       << "</td><td class=\"n\">"
       << s.evaluations << "</td><td class=\"n\">" << Num(s.calibration_time_s, 1)
@@ -328,6 +337,18 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
         h << "<li>[" << Num(e.support, 2) << "] " << Escape(e.statement) << "</li>";
       }
       h << "</ul></td></tr>\n";
+    }
+    h << "</table>\n";
+  }
+  if (!report.confusions.empty()) {
+    h << "<h2>Effects that look alike</h2>\n<table>\n<tr><th>round</th><th>effect</th>"
+         "<th>confused with</th><th>separated</th><th>evidence</th><th>recording that would "
+         "separate them</th></tr>\n";
+    for (const ReportConfusion& c : report.confusions) {
+      h << "<tr><td class=\"n\">" << c.round << "</td><td>" << Escape(c.effect) << "</td><td>"
+        << Escape(c.confused_with.empty() ? std::string("the base model") : c.confused_with)
+        << "</td><td>" << (c.separated ? "yes" : "no") << "</td><td>" << Escape(c.evidence)
+        << "</td><td>" << Escape(c.proposal) << "</td></tr>\n";
     }
     h << "</table>\n";
   }

@@ -100,6 +100,8 @@ LoopReport MakeReport(const fs::path& dir) {
   plastic.errors = {Error("a", 600, 40), Error("b", 700, 40)};
   plastic.reason = "held-out XOR -42%";
   plastic.equally_good = {};
+  plastic.holdout_sensitivity_parameter = "plastic_yield_strain";
+  plastic.test = {40, 10, 500.0, 320.0, 680.0, 0.0004, 1, true};
 
   ReportStage friction = plastic;
   friction.name = "base+plasticity+table_friction";
@@ -160,6 +162,16 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   EXPECT_EQ(doc["stages"][0]["holdout_sensitivity_px"], 12.5);
   EXPECT_EQ(back.stages[0].holdout_sensitivity_px, 12.5);
   EXPECT_EQ(back.stages[1].holdout_sensitivity_px, 12.5);  // copied from base above
+  EXPECT_EQ(back.stages[1].holdout_sensitivity_parameter, "plastic_yield_strain");
+  // The keep rule's test, for tried stages only.
+  EXPECT_FALSE(doc["stages"][0].contains("test"));
+  EXPECT_EQ(doc["stages"][1]["test"]["p_value"], 0.0004);
+  EXPECT_EQ(back.stages[1].test.frames, 40);
+  EXPECT_EQ(back.stages[1].test.blocks, 10);
+  EXPECT_EQ(back.stages[1].test.drop_low, 320.0);
+  EXPECT_EQ(back.stages[1].test.drop_high, 680.0);
+  EXPECT_EQ(back.stages[1].test.hypotheses, 1);
+  EXPECT_TRUE(back.stages[1].test.significant);
   // Hypotheses with their evidence.
   const auto& first = doc["rounds"][0]["hypotheses"][0];
   EXPECT_TRUE(first.contains("confidence"));
@@ -195,6 +207,12 @@ TEST(LoopReport, MalformedJsonNamesTheKey) {
   doc = ToJson(MakeReport(dir));
   doc["stages"][0]["holdout_sensitivity_px"] = -1.0;
   EXPECT_NE(Rejection(doc).find("stages[0].holdout_sensitivity_px"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][1]["test"]["p_value"] = 1.5;
+  EXPECT_NE(Rejection(doc).find("stages[1].test.p_value"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][1]["test"]["significant"] = "yes";
+  EXPECT_NE(Rejection(doc).find("stages[1].test.significant"), std::string::npos) << Rejection(doc);
   doc = ToJson(MakeReport(dir));
   doc["stages"][0]["restart_training_xor"][1] = "low";
   EXPECT_NE(Rejection(doc).find("stages[0].restart_training_xor[1]"), std::string::npos) << Rejection(doc);
