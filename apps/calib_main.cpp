@@ -146,6 +146,7 @@ int main(int argc, char** argv) {
 
   const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best
   const auto loop_cli = calib::cli::AddLoopSubcommand(app);
+  const auto benchmark_cli = calib::cli::AddLoopBenchmarkSubcommand(app);
 
   try {
     app.parse(argc, argv);
@@ -161,6 +162,10 @@ int main(int argc, char** argv) {
       return *status;
     }
     if (const auto status = calib::cli::RunChosenLoopSubcommand(*loop_cli, argc, argv)) {
+      return *status;
+    }
+    if (const auto status =
+            calib::cli::RunChosenLoopBenchmarkSubcommand(*benchmark_cli, argc, argv)) {
       return *status;
     }
     Finish(&settings, integrator, cache_dir, no_cache);

@@ -1,6 +1,7 @@
 #include "loop_cli.h"
 
 #include "calib/discovery/loop.h"
+#include "calib/discovery/loop_benchmark.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -16,11 +17,9 @@ namespace {
 const LoopOptions kDefaults{};
 }  // namespace
 
-struct LoopCli {
-  CLI::App* loop = nullptr;
-  std::vector<std::filesystem::path> train;
-  std::vector<std::filesystem::path> holdout;
-  std::filesystem::path out;
+// The options `calib loop` and `calib loop-benchmark` share: every loop
+// setting but the recordings and the report folder.
+struct LoopRunFlags {
   uint64_t seed = kDefaults.seed;
   int64_t budget = kDefaults.budget;
   int64_t effect_budget = kDefaults.effect_budget;
@@ -43,6 +42,134 @@ struct LoopCli {
   bool quiet = false;
 };
 
+struct LoopCli {
+  CLI::App* loop = nullptr;
+  std::vector<std::filesystem::path> train;
+  std::vector<std::filesystem::path> holdout;
+  std::filesystem::path out;
+  LoopRunFlags flags;
+};
+
+struct LoopBenchmarkCli {
+  CLI::App* benchmark = nullptr;
+  std::filesystem::path family_dir;
+  std::filesystem::path out;
+  std::vector<std::string> only;
+  std::vector<std::string> cells;
+  int limit = 0;
+  LoopRunFlags flags;
+};
+
+namespace {
+
+void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
+  cmd->add_option("--seed", f->seed, "seed of every calibration")->capture_default_str();
+  cmd->add_option("--budget", f->budget, "evaluations of the base model's calibration")
+      ->check(CLI::Range(int64_t{2}, int64_t{100000000}))
+      ->capture_default_str();
+  cmd->add_option("--effect-budget", f->effect_budget,
+                  "evaluations of each calibration with an effect added (0: --budget)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--threads", f->threads, "OpenMP threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--optimizer", f->optimizer,
+                  "optimiser (cmaes, genetic, annealing, random, nlopt:NAME, grid); cmaes and "
+                  "nlopt warm-start each effect from the previous best")
+      ->capture_default_str();
+  cmd->add_option("--max-effects", f->max_effects, "effects kept at most")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--tries", f->tries, "hypotheses recalibrated per round, best ranked first")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--min-confidence", f->min_confidence,
+                  "hypotheses below this confidence are not tried")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--fdr", f->fdr,
+                  "false-discovery rate of the keep rule's test, corrected for every hypothesis "
+                  "tried (Benjamini-Hochberg)")
+      ->check(CLI::Range(0.001, 0.5))
+      ->capture_default_str();
+  cmd->add_option("--held-out-stretch", f->held_out_stretch,
+                  "without --holdout: the share of each training video, at its end, held out "
+                  "(calibrated on the frames before)")
+      ->check(CLI::Range(0.05, 0.95))
+      ->capture_default_str();
+  cmd->add_option("--equally-good-fits", f->equally_good_fits,
+                  "report only: fits of a model as good as its best on the training recordings "
+                  "(within max(segmentation noise, 1%)) re-scored on the held-out recordings "
+                  "(0: none)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--restarts", f->restarts,
+                  "independent searches of the base model's calibration, each with --budget "
+                  "evaluations (the first from the box's centre); the best on the training "
+                  "recordings is the base fit")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--overlays", f->overlays,
+                  "overlay frames per recording at the worst moments (base and final model)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_flag("--outline-contact,!--node-contact", f->outline_contact,
+                "obstacles keep out of the outline's edges, not only its nodes (job spec "
+                "model.outline_contact; the default); --node-contact: the paper's, nodes only");
+  cmd->add_option("--contact-friction", f->contact_friction,
+                  "Coulomb friction between the obstacles and the object in every calibration "
+                  "(job spec model.contact_friction; 0: frictionless)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--integrator", f->integrator,
+                  "first_order (paper eq. 10) or implicit_first_order (the same, implicit in the "
+                  "springs: stable at any stiffness, docs/loop.md)")
+      ->check(CLI::IsMember({"first_order", "implicit_first_order"}))
+      ->capture_default_str();
+  cmd->add_option("--cache-dir", f->cache_dir, "segmentation cache folder");
+  cmd->add_flag("--no-cache", f->no_cache, "do not read or write the segmentation cache");
+  cmd->add_flag("--no-html", f->no_html, "write the reports' JSON only (no report.html)");
+  cmd->add_flag("--quiet", f->quiet, "no progress lines");
+}
+
+LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
+  LoopOptions options;
+  options.seed = f.seed;
+  options.budget = f.budget;
+  options.effect_budget = f.effect_budget;
+  options.threads = f.threads;
+  options.optimizer = f.optimizer;
+  options.max_effects = f.max_effects;
+  options.tries_per_round = f.tries;
+  options.min_confidence = f.min_confidence;
+  options.overlays_per_recording = f.overlays;
+  options.equally_good_fits = f.equally_good_fits;
+  options.false_discovery_rate = f.fdr;
+  options.held_out_stretch = f.held_out_stretch;
+  options.restarts = f.restarts;
+  options.write_html = !f.no_html;
+  options.simulation.outline_contact = f.outline_contact;
+  options.simulation.contact_friction = f.contact_friction;
+  options.simulation.integrator = IntegratorKindFromString(f.integrator);
+  if (f.no_cache) {
+    options.preparation.cache_dir.clear();
+  } else if (!f.cache_dir.empty()) {
+    options.preparation.cache_dir = f.cache_dir;
+  }
+  std::string command;
+  for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
+  options.command = command;
+  return options;
+}
+
+LoopLog ProgressLog(const LoopRunFlags& f) {
+  if (f.quiet) return {};
+  return [](const std::string& line) { spdlog::info("{}", line); };
+}
+
+}  // namespace
+
 std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
   auto cli = std::make_shared<LoopCli>();
   CLI::App* cmd = app.add_subcommand(
@@ -58,116 +185,74 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--out", cli->out, "report folder (report.json, report.html, store.sqlite)")
       ->required();
-  cmd->add_option("--seed", cli->seed, "seed of every calibration")->capture_default_str();
-  cmd->add_option("--budget", cli->budget, "evaluations of the base model's calibration")
-      ->check(CLI::Range(int64_t{2}, int64_t{100000000}))
-      ->capture_default_str();
-  cmd->add_option("--effect-budget", cli->effect_budget,
-                  "evaluations of each calibration with an effect added (0: --budget)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  cmd->add_option("--threads", cli->threads, "OpenMP threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  cmd->add_option("--optimizer", cli->optimizer,
-                  "optimiser (cmaes, genetic, annealing, random, nlopt:NAME, grid); cmaes and "
-                  "nlopt warm-start each effect from the previous best")
-      ->capture_default_str();
-  cmd->add_option("--max-effects", cli->max_effects, "effects kept at most")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  cmd->add_option("--tries", cli->tries, "hypotheses recalibrated per round, best ranked first")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  cmd->add_option("--min-confidence", cli->min_confidence,
-                  "hypotheses below this confidence are not tried")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--fdr", cli->fdr,
-                  "false-discovery rate of the keep rule's test, corrected for every hypothesis "
-                  "tried (Benjamini-Hochberg)")
-      ->check(CLI::Range(0.001, 0.5))
-      ->capture_default_str();
-  cmd->add_option("--held-out-stretch", cli->held_out_stretch,
-                  "without --holdout: the share of each training video, at its end, held out "
-                  "(calibrated on the frames before)")
-      ->check(CLI::Range(0.05, 0.95))
-      ->capture_default_str();
-  cmd->add_option("--equally-good-fits", cli->equally_good_fits,
-                  "report only: fits of a model as good as its best on the training recordings "
-                  "(within max(segmentation noise, 1%)) re-scored on the held-out recordings "
-                  "(0: none)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  cmd->add_option("--restarts", cli->restarts,
-                  "independent searches of the base model's calibration, each with --budget "
-                  "evaluations (the first from the box's centre); the best on the training "
-                  "recordings is the base fit")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  cmd->add_option("--overlays", cli->overlays,
-                  "overlay frames per recording at the worst moments (base and final model)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  cmd->add_flag("--outline-contact,!--node-contact", cli->outline_contact,
-                "obstacles keep out of the outline's edges, not only its nodes (job spec "
-                "model.outline_contact; the default); --node-contact: the paper's, nodes only");
-  cmd->add_option("--contact-friction", cli->contact_friction,
-                  "Coulomb friction between the obstacles and the object in every calibration "
-                  "(job spec model.contact_friction; 0: frictionless)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  cmd->add_option("--integrator", cli->integrator,
-                  "first_order (paper eq. 10) or implicit_first_order (the same, implicit in the "
-                  "springs: stable at any stiffness, docs/loop.md)")
-      ->check(CLI::IsMember({"first_order", "implicit_first_order"}))
-      ->capture_default_str();
-  cmd->add_option("--cache-dir", cli->cache_dir, "segmentation cache folder");
-  cmd->add_flag("--no-cache", cli->no_cache, "do not read or write the segmentation cache");
-  cmd->add_flag("--no-html", cli->no_html, "write report.json only");
-  cmd->add_flag("--quiet", cli->quiet, "no progress lines");
+  AddLoopRunOptions(cmd, &cli->flags);
   return cli;
 }
 
 std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) {
   if (cli.loop == nullptr || !*cli.loop) return std::nullopt;
-  LoopOptions options;
+  LoopOptions options = ToLoopOptions(cli.flags, argc, argv);
   options.train = cli.train;
   options.holdout = cli.holdout;
   options.out_dir = cli.out;
-  options.seed = cli.seed;
-  options.budget = cli.budget;
-  options.effect_budget = cli.effect_budget;
-  options.threads = cli.threads;
-  options.optimizer = cli.optimizer;
-  options.max_effects = cli.max_effects;
-  options.tries_per_round = cli.tries;
-  options.min_confidence = cli.min_confidence;
-  options.overlays_per_recording = cli.overlays;
-  options.equally_good_fits = cli.equally_good_fits;
-  options.false_discovery_rate = cli.fdr;
-  options.held_out_stretch = cli.held_out_stretch;
-  options.restarts = cli.restarts;
-  options.write_html = !cli.no_html;
-  options.simulation.outline_contact = cli.outline_contact;
-  options.simulation.contact_friction = cli.contact_friction;
-  options.simulation.integrator = IntegratorKindFromString(cli.integrator);
-  if (cli.no_cache) {
-    options.preparation.cache_dir.clear();
-  } else if (!cli.cache_dir.empty()) {
-    options.preparation.cache_dir = cli.cache_dir;
-  }
-  std::string command;
-  for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
-  options.command = command;
-  LoopLog log;
-  if (!cli.quiet) log = [](const std::string& line) { spdlog::info("{}", line); };
-  const LoopResult result = RunLoop(options, log);
+  const LoopResult result = RunLoop(options, ProgressLog(cli.flags));
   fmt::print("\n{}", result.table);
   fmt::print("run time: {:.1f} s\n", result.report.run_time_s);
   fmt::print("report: {}\n", result.report_json.string());
   if (!result.report_html.empty()) fmt::print("report: {}\n", result.report_html.string());
   fmt::print("results store: {}\n", result.store.string());
+  return 0;
+}
+
+std::shared_ptr<LoopBenchmarkCli> AddLoopBenchmarkSubcommand(CLI::App& app) {
+  auto cli = std::make_shared<LoopBenchmarkCli>();
+  CLI::App* cmd = app.add_subcommand(
+      "loop-benchmark",
+      "run the loop on every object of a family of recordings (FAMILY_DIR/family.json) and "
+      "measure how often it keeps the effect each has; write benchmark.json, .csv, .html "
+      "(docs/loop.md)");
+  cli->benchmark = cmd;
+  cmd->add_option("family_dir", cli->family_dir, "family folder (family.json, the recordings)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--out", cli->out,
+                  "benchmark folder (objects/<id>/ per object, benchmark.json, .csv, .html); "
+                  "objects already done there with the same options are read back")
+      ->required();
+  cmd->add_option("--only", cli->only, "object ids to run (default: all)");
+  cmd->add_option("--cells", cli->cells, "cells to run (default: all)");
+  cmd->add_option("--limit", cli->limit, "the first N objects of each cell (0: all)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  AddLoopRunOptions(cmd, &cli->flags);
+  return cli;
+}
+
+std::optional<int> RunChosenLoopBenchmarkSubcommand(LoopBenchmarkCli& cli, int argc, char** argv) {
+  if (cli.benchmark == nullptr || !*cli.benchmark) return std::nullopt;
+  LoopBenchmarkOptions options;
+  options.loop = ToLoopOptions(cli.flags, argc, argv);
+  options.command = options.loop.command;
+  options.family_dir = cli.family_dir;
+  options.out_dir = cli.out;
+  options.only = cli.only;
+  options.cells = cli.cells;
+  options.limit_per_cell = cli.limit;
+  options.write_html = !cli.flags.no_html;
+  const LoopBenchmarkResult result = RunLoopBenchmark(options, ProgressLog(cli.flags));
+  const BenchmarkAggregate& a = result.report.aggregate;
+  fmt::print("\nobjects: {} ({} run, {} read back, {} failed)\n", a.objects, result.ran,
+             result.resumed, result.failed);
+  fmt::print("false discoveries: {} / {}\n", a.false_discoveries.successes,
+             a.false_discoveries.trials);
+  for (const DetectionRate& d : a.detection) {
+    fmt::print("detected {} ({}): {} / {}\n", d.effect, d.magnitude.empty() ? "-" : d.magnitude,
+               d.detected.successes, d.detected.trials);
+  }
+  fmt::print("run time: {:.1f} s\n", a.total_run_time_s);
+  fmt::print("benchmark: {}\n", result.json.string());
+  fmt::print("benchmark: {}\n", result.csv.string());
+  if (!result.html.empty()) fmt::print("benchmark: {}\n", result.html.string());
   return 0;
 }
 

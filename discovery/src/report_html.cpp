@@ -2,6 +2,8 @@
 
 #include "calib/discovery/report_html.h"
 
+#include "html_page.h"
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -16,21 +18,9 @@ namespace calib {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string Escape(const std::string& s) {
-  std::string out;
-  out.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
+using html::Escape;
+using html::Num;
+using html::Plotter;
 
 std::string Base64(const std::string& bytes) {
   static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -59,56 +49,10 @@ std::string Base64(const std::string& bytes) {
   return out;
 }
 
-std::string Num(double v, int decimals = 2) {
-  return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : std::string("&ndash;");
-}
-
 std::string Percent(double before, double after) {
   if (!(before > 0.0)) return "&ndash;";
   return fmt::format("{:+.1f}%", 100.0 * (after - before) / before);
 }
-
-// The SVG document without its XML prologue, for inline use.
-std::string InlineSvg(const std::string& svg) {
-  const size_t at = svg.find("<svg");
-  return at == std::string::npos ? svg : svg.substr(at);
-}
-
-// Plot making, or its absence.
-class Plotter {
- public:
-  explicit Plotter(const HtmlReportOptions& options) : options_(options) {
-    available_ = GnuplotAvailable(options.gnuplot.executable, &message_);
-    if (!available_ && options.require_plots) throw std::runtime_error(message_);
-  }
-  bool available() const { return available_; }
-  const std::string& message() const { return message_; }
-  int plots() const { return plots_; }
-
-  /// The figure for `script` (a <figure> with the SVG and a caption), or
-  /// an empty string without gnuplot.
-  std::string Figure(const std::string& script, const std::string& caption, int height_px = 0) {
-    if (!available_) return "";
-    GnuplotOptions g = options_.gnuplot;
-    if (height_px > 0) g.height_px = height_px;
-    std::string svg;
-    try {
-      svg = RenderSvg(script, g);
-    } catch (const std::runtime_error&) {
-      if (options_.require_plots) throw;
-      return fmt::format("<p class=\"warn\">Plot failed: {}</p>\n", Escape(caption));
-    }
-    ++plots_;
-    return fmt::format("<figure class=\"plot\">{}<figcaption>{}</figcaption></figure>\n",
-                       InlineSvg(svg), Escape(caption));
-  }
-
- private:
-  const HtmlReportOptions& options_;
-  bool available_ = false;
-  std::string message_;
-  int plots_ = 0;
-};
 
 // Per-frame XOR of base and final model on one recording.
 std::string ErrorPlotScript(const ReportRecording& rec, const RecordingScore* before,
@@ -241,19 +185,6 @@ std::string RestartsText(const std::vector<double>& training_xor) {
                      training_xor.size(), fmt::join(training_xor, ", "));
 }
 
-constexpr const char* kStyle = R"(
-body { font-family: sans-serif; margin: 2em; max-width: 1200px; color: #222; }
-table { border-collapse: collapse; margin: 1em 0; }
-th, td { border: 1px solid #bbb; padding: 0.3em 0.6em; text-align: left; vertical-align: top; }
-th { background: #eee; }
-td.n { text-align: right; font-variant-numeric: tabular-nums; }
-.accepted { background: #e8f6e8; } .rejected { background: #fbeaea; } .base { background: #f4f4f4; }
-.warn { background: #fff3cd; border: 1px solid #e0c060; padding: 0.6em; }
-figure { margin: 1em 0; } figcaption { font-size: 0.9em; color: #555; }
-img.overlay { max-width: 100%; border: 1px solid #999; }
-ul.evidence { margin: 0.2em 0; padding-left: 1.2em; font-size: 0.9em; }
-)";
-
 }  // namespace
 
 HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopReport& report,
@@ -268,9 +199,7 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
   const ReportStage* base = report.BaseStage();
   const ReportStage* fin = report.FinalStage();
   std::ostringstream h;
-  h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>"
-    << Escape(report.title) << "</title>\n<style>" << kStyle << "</style>\n</head>\n<body>\n";
-  h << "<h1>" << Escape(report.title) << "</h1>\n";
+  h << html::PageStart(report.title);
   if (!plot.available()) {
     h << "<p class=\"warn\">This report has no plots: " << Escape(plot.message()) << ".</p>\n";
   }
@@ -400,14 +329,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     for (const std::string& n : report.notes) h << "<li>" << Escape(n) << "</li>\n";
     h << "</ul>\n";
   }
-  h << "<p style=\"font-size:0.8em;color:#777\">Plots: "
-    << (plot.available() ? Escape(plot.message()) : std::string("none")) << ".</p>\n";
-  h << "</body>\n</html>\n";
-
-  std::ofstream out(html_path);
-  if (!out) throw std::runtime_error(fmt::format("{}: cannot open for writing", html_path.string()));
-  out << h.str();
-  if (!out) throw std::runtime_error(fmt::format("{}: write failed", html_path.string()));
+  h << plot.PageEnd();
+  html::WritePage(html_path, h.str());
   summary.plots = plot.plots();
   return summary;
 }

@@ -1,4 +1,4 @@
-#include "csv_writer.h"
+#include "calib/results/csv_writer.h"
 
 #include <csv.h>
 

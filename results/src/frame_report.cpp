@@ -1,6 +1,6 @@
 #include "calib/results/frame_report.h"
 
-#include "csv_writer.h"
+#include "calib/results/csv_writer.h"
 
 #include <fmt/format.h>
 

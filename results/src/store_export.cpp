@@ -3,7 +3,7 @@
 #include "calib/results/store.h"
 
 #include "calib/evaluator/json_number.h"
-#include "csv_writer.h"
+#include "calib/results/csv_writer.h"
 
 #include <fmt/format.h>
 

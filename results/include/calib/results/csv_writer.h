@@ -1,7 +1,8 @@
 #pragma once
-// Writing CSV files (results' private helper): one record per line, fields
-// that hold a separator, quote or line break quoted by libcsv (their quotes
-// doubled), the rest written as they are.
+// Writing CSV files (the results store's exports, the frame reports, the
+// loop benchmark's table): one record per line, fields that hold a
+// separator, quote or line break quoted by libcsv (their quotes doubled),
+// the rest written as they are.
 
 #include <cstdio>
 #include <filesystem>
