@@ -72,8 +72,8 @@ std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationR
 
 namespace loop_detail {
 
-int64_t Fit::XorSum(const std::vector<LoopRecording>& recs, bool train) const {
-  int64_t s = 0;
+double Fit::XorSum(const std::vector<LoopRecording>& recs, bool train) const {
+  double s = 0.0;
   for (size_t r = 0; r < recs.size(); ++r) {
     if (recs[r].train == train) s += results[r].ok() ? results[r].xor_sum : INT64_MAX / 64;
   }
@@ -115,8 +115,8 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
   // ablation where it is better there.
   const Fit& current = ablation != nullptr ? *ablation : previous;
   Verdict v;
-  const int64_t train_before = current.XorSum(recs_, true);
-  const int64_t train_after = candidate.XorSum(recs_, true);
+  const double train_before = current.XorSum(recs_, true);
+  const double train_after = candidate.XorSum(recs_, true);
   if (!candidate.AllOk()) {
     v.criterion = "every recording simulates";
     v.reason = "the calibrated model fails to simulate a recording";
@@ -175,7 +175,7 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
     v.pass = v.gain > v.margin && train_ok && iou_ok;
     auto spread = [](const EquallyGoodFits& g) {
       return g.fits == 0 ? std::string("not measured")
-                         : fmt::format("{} fits, {} to {}", g.fits, g.holdout_xor_min, g.holdout_xor_max);
+                         : fmt::format("{} fits, {:.0f} to {:.0f}", g.fits, g.holdout_xor_min, g.holdout_xor_max);
     };
     auto percent = [](double b, double a) { return b > 0 ? 100.0 * (a - b) / b : 0.0; };
     v.reason = fmt::format(
@@ -184,7 +184,7 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
         "before: {}; after: {}): the deciding drop ({}), {:.0f} px, {} the margin {:.0f} px = max({} x "
         "(1 + {} extra parameters) x segmentation noise {:.0f} px, {:.0f}% of {:.0f}, what a 0.1% "
         "nudge of either model's values moves: {:.0f} px); training "
-        "XOR sum {} -> {}{}; held-out mean IoU {:.5f} -> {:.5f}{}",
+        "XOR sum {:.0f} -> {:.0f}{}; held-out mean IoU {:.5f} -> {:.5f}{}",
         best_before, best_after, percent(best_before, best_after), typical_before, typical_after,
         percent(typical_before, typical_after), candidate.equally_good.training_tolerance_px,
         spread(previous.equally_good), spread(candidate.equally_good),

@@ -92,7 +92,7 @@ double Since(Clock::time_point start) {
 
 std::string EquallyGoodLine(const EquallyGoodFits& g) {
   if (g.fits == 0) return "";
-  return fmt::format("; {} equally good fits: held-out XOR {} to {}, median {}", g.fits,
+  return fmt::format("; {} equally good fits: held-out XOR {:.0f} to {:.0f}, median {:.0f}", g.fits,
                      g.holdout_xor_min, g.holdout_xor_max, g.holdout_xor_median);
 }
 
@@ -187,7 +187,7 @@ void Loop::AddOverlays(const Fit& fit, const std::string& stage) {
   if (o_.overlays_per_recording == 0) return;
   const ModelDefinition model{fit.effects};
   for (size_t r = 0; r < recs_.size(); ++r) {
-    std::vector<int64_t> frame_xor;
+    std::vector<double> frame_xor;
     for (const FrameScore& f : fit.results[r].frames) frame_xor.push_back(f.xor_px);
     const int gap = std::max(1, static_cast<int>(frame_xor.size()) / 10);
     std::vector<int> frames = WorstFrames(frame_xor, o_.overlays_per_recording, gap);
@@ -289,7 +289,7 @@ LoopResult Loop::Run() {
       static_cast<double>(base.XorSum(recs_, !holdout));
   report_.stages.back().reason = "the paper's base model";
   AddResiduals(base);
-  Log(fmt::format("base: training XOR {}, held-out XOR {} ({:.1f} s){}{}{}", base.XorSum(recs_, true),
+  Log(fmt::format("base: training XOR {:.0f}, held-out XOR {:.0f} ({:.1f} s){}{}{}", base.XorSum(recs_, true),
                   base.XorSum(recs_, false), base.seconds, EquallyGoodLine(base.equally_good),
                   RestartsLine(base.restart_training_xor),
                   holdout ? fmt::format("; a 0.1% nudge of its values moves the held-out XOR by up "
@@ -354,7 +354,7 @@ LoopResult Loop::Run() {
       if (ablation_better) {
         v.reason = fmt::format(
             "against the previous model with this calibration's values and {} off (training "
-            "XOR {} < {} of the previous fit): {}",
+            "XOR {:.0f} < {:.0f} of the previous fit): {}",
             effect, ablation.XorSum(recs_, true), current.XorSum(recs_, true), v.reason);
       }
       ReportStage stage = MakeStage(fit, effect, StageDecision::kRejected);
@@ -429,7 +429,7 @@ std::string BeforeAfterTable(const LoopReport& report) {
     const RecordingScore* f = final_stage->ErrorOn(rec.name);
     if (b == nullptr || f == nullptr) continue;
     const double change = b->xor_sum > 0 ? 100.0 * (double(f->xor_sum) - double(b->xor_sum)) / double(b->xor_sum) : 0.0;
-    out += fmt::format("{:<22} {:<8} {:>12} {:>12} {:>7.1f}% {:>9.4f} {:>9.4f}\n", rec.name, rec.role,
+    out += fmt::format("{:<22} {:<8} {:>12.0f} {:>12.0f} {:>7.1f}% {:>9.4f} {:>9.4f}\n", rec.name, rec.role,
                        b->xor_sum, f->xor_sum, change, b->mean_iou, f->mean_iou);
   }
   std::vector<std::string> tried;

@@ -47,7 +47,7 @@ struct Fit {
   /// value moves by kSensitivityNudge (px; 0 until measured).
   double holdout_sensitivity_px = 0.0;
 
-  int64_t XorSum(const std::vector<LoopRecording>& recs, bool train) const;
+  double XorSum(const std::vector<LoopRecording>& recs, bool train) const;
   bool AllOk() const;
 };
 
@@ -57,7 +57,7 @@ std::string StageName(const std::vector<std::string>& effects);
 /// The held-out score of one parameter set on one recording.
 struct HeldOutScore {
   bool ok = false;
-  int64_t xor_sum = 0;
+  double xor_sum = 0.0;
   double mean_iou = 0.0;
 };
 

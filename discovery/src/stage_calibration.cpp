@@ -352,7 +352,7 @@ std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<Para
           for (const FinishedCandidate& c : done) {
             HeldOutScore& s = scores[static_cast<size_t>(c.id) * held.size() + h];
             s.ok = c.result.ok();
-            s.xor_sum = std::isfinite(c.result.score) ? static_cast<int64_t>(c.result.score) : 0;
+            s.xor_sum = std::isfinite(c.result.score) ? c.result.score : 0.0;
             s.mean_iou = c.result.iou.mean;
           }
         },
@@ -416,10 +416,10 @@ void StageCalibrator::MeasureEquallyGood(Fit* fit) const {
   const std::vector<HeldOutScore> results = ScoreOnHeldOut(sets, fit->effects);  // failures counted out below
   EquallyGoodFits g;
   g.training_tolerance_px = tolerance;
-  std::vector<int64_t> sums;
+  std::vector<double> sums;
   // One fit's held-out results, results_of(h) on the h-th held-out recording.
   auto add = [&](const auto& results_of) {
-    int64_t xor_sum = 0;
+    double xor_sum = 0.0;
     double iou = 0.0;
     for (size_t h = 0; h < held.size(); ++h) {
       const HeldOutScore e = results_of(h);

@@ -35,9 +35,9 @@ struct ReportRecording {
 struct RecordingScore {
   std::string recording;       ///< a ReportRecording::name
   std::string status = "ok";   ///< "ok" or "failed"
-  int64_t xor_sum = 0;         ///< XOR pixels summed over the frames
+  double xor_sum = 0.0;        ///< XOR pixel area (px^2) summed over the frames
   double mean_iou = 0.0;
-  std::vector<int64_t> frame_xor;  ///< per frame (may be empty); plotted
+  std::vector<double> frame_xor;  ///< per frame (may be empty); plotted
   std::vector<double> frame_iou;
 
   /// From an evaluation (per-frame values included).
@@ -58,9 +58,9 @@ StageDecision StageDecisionFromString(const std::string& text);
 struct EquallyGoodFits {
   int fits = 0;                       ///< distinct parameter sets re-scored; 0: not measured
   double training_tolerance_px = 0.0;  ///< training XOR sum within this of the best
-  int64_t holdout_xor_min = 0;        ///< held-out XOR sum over the held-out recordings
-  int64_t holdout_xor_max = 0;
-  int64_t holdout_xor_median = 0;     ///< the lower median
+  double holdout_xor_min = 0.0;       ///< held-out XOR sum over the held-out recordings
+  double holdout_xor_max = 0.0;
+  double holdout_xor_median = 0.0;    ///< the lower median
   double holdout_iou_at_min = 0.0;    ///< held-out mean IoU of the fit with the minimum
 };
 
@@ -113,7 +113,7 @@ struct ReportOverlay {
   std::string recording;
   std::string stage;
   int frame = 0;
-  int64_t xor_px = 0;
+  double xor_px = 0.0;  ///< the frame's XOR area, px^2
   double iou = 0.0;
   std::string png_file;  ///< relative to the report's folder
   std::string caption;
@@ -154,6 +154,6 @@ LoopReport ReadLoopReportJson(const std::filesystem::path& path);
 
 /// The `count` frames of largest XOR that lie at least `min_gap` frames
 /// apart, worst first (for overlays).
-std::vector<int> WorstFrames(const std::vector<int64_t>& frame_xor, int count, int min_gap);
+std::vector<int> WorstFrames(const std::vector<double>& frame_xor, int count, int min_gap);
 
 }  // namespace calib
