@@ -71,7 +71,9 @@ void Finish(CommandSettings* settings, const std::string& integrator, const std:
 }
 
 void PrintResult(const calib::EvaluationResult& result) {
-  fmt::print("score (XOR pixels summed over frames): {}\n", result.xor_sum);
+  // Exactly (the shortest text that reads back to the same double), as the
+  // results store holds a job's scores.
+  fmt::print("score (XOR pixel area summed over frames): {}\n", result.xor_sum);
   fmt::print("mean IoU: {:.4f} over {} of {} frames\n", result.mean_iou, result.frames.size(),
              result.num_frames);
   if (result.ok()) {

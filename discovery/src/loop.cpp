@@ -232,7 +232,7 @@ void Loop::AddOverlays(const Fit& fit, const std::string& stage) {
   if (o_.overlays_per_recording == 0) return;
   const ModelDefinition model{fit.effects};
   for (size_t r = 0; r < recs_.size(); ++r) {
-    std::vector<int64_t> frame_xor;
+    std::vector<double> frame_xor;
     for (const FrameScore& f : fit.results[r].frames) frame_xor.push_back(f.xor_px);
     const int gap = std::max(1, static_cast<int>(frame_xor.size()) / 10);
     std::vector<int> frames = WorstFrames(frame_xor, o_.overlays_per_recording, gap);
@@ -506,7 +506,7 @@ std::string BeforeAfterTable(const LoopReport& report) {
     const RecordingScore* f = final_stage->ErrorOn(rec.name);
     if (b == nullptr || f == nullptr) continue;
     const double change = b->xor_sum > 0 ? 100.0 * (double(f->xor_sum) - double(b->xor_sum)) / double(b->xor_sum) : 0.0;
-    out += fmt::format("{:<22} {:<8} {:>12} {:>12} {:>7.1f}% {:>9.4f} {:>9.4f}\n", rec.name, rec.role,
+    out += fmt::format("{:<22} {:<8} {:>12.0f} {:>12.0f} {:>7.1f}% {:>9.4f} {:>9.4f}\n", rec.name, rec.role,
                        b->xor_sum, f->xor_sum, change, b->mean_iou, f->mean_iou);
   }
   std::vector<std::string> tried;

@@ -94,11 +94,11 @@ RecordingScore ErrorFromJson(const json& j, const std::string& path) {
   RecordingScore e;
   e.recording = in.Text("recording");
   e.status = in.Text("status");
-  e.xor_sum = in.Int("xor_sum");
+  e.xor_sum = in.Num("xor_sum");
   e.mean_iou = in.Num("mean_iou");
   for (const json& v : in.Array("frame_xor")) {
-    if (!v.is_number_integer()) Bad(in.Path("frame_xor"), "expected integers");
-    e.frame_xor.push_back(v.get<int64_t>());
+    if (!v.is_number()) Bad(in.Path("frame_xor"), "expected numbers");
+    e.frame_xor.push_back(v.get<double>());
   }
   for (const json& v : in.Array("frame_iou")) {
     e.frame_iou.push_back(v.is_null() ? NAN : v.get<double>());
@@ -409,7 +409,7 @@ LoopReport LoopReportFromJson(const nlohmann::json& doc) {
   for (size_t i = 0; i < overlays.size(); ++i) {
     const In o(overlays[i], fmt::format("overlays[{}]", i));
     r.overlays.push_back({o.Text("recording"), o.Text("stage"), static_cast<int>(o.Int("frame")),
-                          o.Int("xor_px"), o.Num("iou"), o.Text("png_file"), o.Text("caption")});
+                          o.Num("xor_px"), o.Num("iou"), o.Text("png_file"), o.Text("caption")});
   }
   r.notes = in.Texts("notes");
   return r;
@@ -434,7 +434,7 @@ LoopReport ReadLoopReportJson(const std::filesystem::path& path) {
   return LoopReportFromJson(doc);
 }
 
-std::vector<int> WorstFrames(const std::vector<int64_t>& frame_xor, int count, int min_gap) {
+std::vector<int> WorstFrames(const std::vector<double>& frame_xor, int count, int min_gap) {
   std::vector<int> order(frame_xor.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(),

@@ -135,8 +135,8 @@ std::string SummaryBarsScript(const LoopReport& report) {
     const RecordingScore* b = base->ErrorOn(rec.name);
     const RecordingScore* a = fin->ErrorOn(rec.name);
     if (b == nullptr || a == nullptr) continue;
-    data += fmt::format("{} {} {}\n", GnuplotQuote(rec.name + " (" + rec.role + ")"), b->xor_sum,
-                        a->xor_sum);
+    data += fmt::format("{} {:.1f} {:.1f}\n", GnuplotQuote(rec.name + " (" + rec.role + ")"),
+                        b->xor_sum, a->xor_sum);
     ++n;
   }
   data += "EOD\n";
@@ -144,7 +144,7 @@ std::string SummaryBarsScript(const LoopReport& report) {
   return data +
          "set style data histogram\nset style histogram clustered gap 1\n"
          "set style fill solid 0.8 border -1\nset boxwidth 0.9\nset grid ytics\n"
-         "set ylabel 'XOR pixels summed over frames'\nset yrange [0:*]\nset key top right\n"
+         "set ylabel 'XOR pixel area summed over frames'\nset yrange [0:*]\nset key top right\n"
          "set xtics rotate by -20\n"
          "set title 'error before and after, every recording'\n"
          "plot $bars using 2:xtic(1) title 'before (base model)' lc rgb '#c0392b', "
@@ -174,7 +174,7 @@ std::string EquallyGoodText(const EquallyGoodFits& g) {
   if (g.fits == 0) return "";
   return fmt::format(
       "<br><i>{} equally good fits (training XOR within {:.0f} px of the best): held-out XOR "
-      "{} to {}</i>",
+      "{:.0f} to {:.0f}</i>",
       g.fits, g.training_tolerance_px, g.holdout_xor_min, g.holdout_xor_max);
 }
 
@@ -220,10 +220,10 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     const RecordingScore* b = base != nullptr ? base->ErrorOn(rec.name) : nullptr;
     const RecordingScore* a = fin != nullptr ? fin->ErrorOn(rec.name) : nullptr;
     h << "<tr><td>" << Escape(rec.name) << "</td><td>" << Escape(rec.role) << "</td>";
-    h << "<td class=\"n\">" << (b ? std::to_string(b->xor_sum) : "&ndash;") << "</td>";
-    h << "<td class=\"n\">" << (a ? std::to_string(a->xor_sum) : "&ndash;") << "</td>";
+    h << "<td class=\"n\">" << (b ? Num(b->xor_sum, 0) : "&ndash;") << "</td>";
+    h << "<td class=\"n\">" << (a ? Num(a->xor_sum, 0) : "&ndash;") << "</td>";
     h << "<td class=\"n\">"
-      << (a && b ? Percent(static_cast<double>(b->xor_sum), static_cast<double>(a->xor_sum))
+      << (a && b ? Percent(b->xor_sum, a->xor_sum)
                  : "&ndash;")
       << "</td>";
     h << "<td class=\"n\">" << (b ? Num(b->mean_iou, 4) : "&ndash;") << "</td>";
@@ -232,7 +232,7 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
   h << "</table>\n";
   const std::string bars = SummaryBarsScript(report);
   if (!bars.empty()) {
-    h << plot.Figure(bars, "XOR pixels summed over each recording, base model and final model");
+    h << plot.Figure(bars, "XOR pixel area summed over each recording, base model and final model");
   }
 
   // Stages.
@@ -289,7 +289,7 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     const RecordingScore* a = fin != nullptr ? fin->ErrorOn(rec.name) : nullptr;
     const std::string error_script = ErrorPlotScript(rec, b, a);
     if (!error_script.empty()) {
-      h << plot.Figure(error_script, "XOR pixels per frame: base model and final model");
+      h << plot.Figure(error_script, "XOR pixel area per frame: base model and final model");
     }
     for (const ReportResidual& r : report.residuals) {
       if (r.recording != rec.name) continue;
@@ -318,8 +318,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
         }
       }
       h << "<figure><img class=\"overlay\" src=\"" << src << "\" alt=\"overlay frame " << o.frame
-        << "\"><figcaption>" << Escape(o.stage) << ", frame " << o.frame << ": XOR " << o.xor_px
-        << " px, IoU " << Num(o.iou, 4) << ". " << Escape(o.caption)
+        << "\"><figcaption>" << Escape(o.stage) << ", frame " << o.frame << ": XOR "
+        << Num(o.xor_px, 1) << " px, IoU " << Num(o.iou, 4) << ". " << Escape(o.caption)
         << "</figcaption></figure>\n";
       ++summary.overlays;
     }

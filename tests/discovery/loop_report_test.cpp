@@ -7,6 +7,7 @@
 #include "calib/evaluator/rasterizer.h"
 #include "support/test_support.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -54,11 +55,12 @@ ResidualAnalysis ShiftAnalysis(const std::string& name, double shift, int frames
   return analyser.Finish();
 }
 
-RecordingScore Error(const std::string& recording, int64_t per_frame, int frames) {
+// Per-frame XOR areas around `per_frame` px^2, fractional as the score's are.
+RecordingScore Error(const std::string& recording, double per_frame, int frames) {
   RecordingScore e;
   e.recording = recording;
   for (int f = 0; f < frames; ++f) {
-    e.frame_xor.push_back(per_frame + (f % 7) * 10);
+    e.frame_xor.push_back(per_frame + (f % 7) * 10 + 0.25 * (f % 3));
     e.frame_iou.push_back(0.9 + 0.001 * (f % 5));
     e.xor_sum += e.frame_xor.back();
   }
@@ -251,7 +253,9 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
   EXPECT_NE(html.find("base+plasticity"), std::string::npos);
   EXPECT_NE(html.find("3 independent searches, best training XOR of each: 2100, 1000, 1003"),
             std::string::npos);
-  EXPECT_NE(html.find(std::to_string(report.stages[1].errors[1].xor_sum)), std::string::npos);
+  EXPECT_NE(html.find(fmt::format(">{:.0f}<", report.stages[1].errors[1].xor_sum)),
+            std::string::npos)
+      << "XOR sums rounded to whole px^2 in the table";
   EXPECT_NE(html.find("a note with &lt;html&gt; &amp; &quot;quotes&quot;"), std::string::npos);
   EXPECT_EQ(html.find("This report has no plots"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir / "report.json"));

@@ -89,7 +89,7 @@ TEST(Loop, AddsNothingWhereNoEffectIsPresent) {
     const EquallyGoodFits& spread = stage.equally_good;
     ASSERT_GE(spread.fits, 1) << stage.name;
     EXPECT_LE(spread.fits, options.equally_good_fits + 1) << stage.name;
-    const int64_t holdout = testing::HeldOutXor(stage, result.report);
+    const double holdout = testing::HeldOutXor(stage, result.report);
     EXPECT_LE(spread.holdout_xor_min, holdout) << stage.name;
     EXPECT_GE(spread.holdout_xor_max, holdout) << stage.name;
     EXPECT_GT(spread.training_tolerance_px, 0.0) << stage.name;
@@ -114,7 +114,7 @@ TEST(Loop, EquallyGoodFitsMeasureTheHeldOutSpreadOfAFlatValley) {
   const ReportStage& base = result.report.stages.front();
   const EquallyGoodFits& spread = base.equally_good;
   ASSERT_GE(spread.fits, 2) << "more than the best fit within 1% of its training XOR";
-  const int64_t holdout = testing::HeldOutXor(base, result.report);
+  const double holdout = testing::HeldOutXor(base, result.report);
   EXPECT_LE(spread.holdout_xor_min, spread.holdout_xor_median);
   EXPECT_LE(spread.holdout_xor_median, spread.holdout_xor_max);
   EXPECT_LE(spread.holdout_xor_min, holdout);
@@ -122,7 +122,7 @@ TEST(Loop, EquallyGoodFitsMeasureTheHeldOutSpreadOfAFlatValley) {
   // Fits equally good on training differ on held-out data by more than the
   // loop's 1% margin: a single fit's held-out error cannot judge an effect.
   EXPECT_GT(spread.holdout_xor_max - spread.holdout_xor_min, holdout / 100);
-  const int64_t training = base.errors.front().xor_sum;
+  const double training = base.errors.front().xor_sum;
   EXPECT_NEAR(spread.training_tolerance_px, 0.01 * static_cast<double>(training), 1.0)
       << "1% of the training XOR sum (above the training segmentation noise)";
   // The per-fit numbers come from the store's evaluations of the base

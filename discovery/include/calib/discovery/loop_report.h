@@ -35,9 +35,9 @@ struct ReportRecording {
 struct RecordingScore {
   std::string recording;       ///< a ReportRecording::name
   std::string status = "ok";   ///< "ok" or "failed"
-  int64_t xor_sum = 0;         ///< XOR pixels summed over the frames
+  double xor_sum = 0.0;        ///< XOR pixel area (px^2) summed over the frames
   double mean_iou = 0.0;
-  std::vector<int64_t> frame_xor;  ///< per frame (may be empty); plotted
+  std::vector<double> frame_xor;  ///< per frame (may be empty); plotted
   std::vector<double> frame_iou;
 
   /// From an evaluation (per-frame values included).
@@ -130,7 +130,7 @@ struct ReportOverlay {
   std::string recording;
   std::string stage;
   int frame = 0;
-  int64_t xor_px = 0;
+  double xor_px = 0.0;  ///< the frame's XOR area, px^2
   double iou = 0.0;
   std::string png_file;  ///< relative to the report's folder
   std::string caption;
@@ -183,6 +183,6 @@ LoopReport ReadLoopReportJson(const std::filesystem::path& path);
 
 /// The `count` frames of largest XOR that lie at least `min_gap` frames
 /// apart, worst first (for overlays).
-std::vector<int> WorstFrames(const std::vector<int64_t>& frame_xor, int count, int min_gap);
+std::vector<int> WorstFrames(const std::vector<double>& frame_xor, int count, int min_gap);
 
 }  // namespace calib
