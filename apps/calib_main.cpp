@@ -7,10 +7,9 @@
 #include "calib/evaluator/recording_compare.h"
 #include "calib/jobs/commands.h"
 #include "calib/results/frame_report.h"
-#include "calib/synth/scenario.h"
-#include "calib/synth/synthesize.h"
 #include "job_cli.h"
 #include "loop_cli.h"
+#include "synth_cli.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -127,16 +126,7 @@ int main(int argc, char** argv) {
   auto* params_cmd = app.add_subcommand("params", "list the model's parameters");
   AddEffectsOption(params_cmd, &settings);
 
-  std::filesystem::path scenario_path;
-  std::filesystem::path synth_out;
-  auto* synth = app.add_subcommand(
-      "synth", "make a synthetic recording from a scenario file (docs/scenario.md)");
-  synth->add_option("scenario", scenario_path, "scenario file (YAML)")->required();
-  synth->add_option("--out", synth_out, "recording folder to write")->required();
-  bool without_effects = false;
-  synth->add_flag("--without-effects", without_effects,
-                  "switch the scenario's effects off (its twin, for `calib compare`: the effects' "
-                  "footprint in pixels)");
+  const auto synth_cli = calib::cli::AddSynthSubcommand(app);
 
   std::filesystem::path compare_a, compare_b, compare_csv;
   auto* compare = app.add_subcommand(
@@ -170,6 +160,7 @@ int main(int argc, char** argv) {
             calib::cli::RunChosenLoopBenchmarkSubcommand(*benchmark_cli, argc, argv)) {
       return *status;
     }
+    if (const auto status = calib::cli::RunChosenSynthSubcommand(*synth_cli)) return *status;
     Finish(&settings, integrator, cache_dir, no_cache);
     if (*mesh) {
       const auto summary = calib::RunMesh(recording, out, settings);
@@ -190,14 +181,6 @@ int main(int argc, char** argv) {
       const auto result = calib::RunScore(recording, params, settings);
       PrintResult(result);
       return result.ok() ? 0 : 3;
-    } else if (*synth) {
-      calib::synth::Scenario scenario = calib::synth::LoadScenario(scenario_path);
-      if (without_effects) scenario = calib::synth::WithoutEffects(scenario);
-      const auto summary = calib::synth::Synthesize(scenario, synth_out);
-      fmt::print("wrote {} (recording.json, video.mp4, track.csv, truth.json)\n",
-                 summary.folder.string());
-      fmt::print("{}\n", summary.BriefReport());
-      fmt::print("time: {:.1f} s, size: {:.2f} MB\n", summary.total_s, summary.bytes / 1e6);
     } else if (*compare) {
       const calib::Recording a = calib::LoadRecording(compare_a);
       const calib::Recording b = calib::LoadRecording(compare_b);

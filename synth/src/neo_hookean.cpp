@@ -66,17 +66,18 @@ Eigen::Matrix<double, 4, 6> DeformationGradientJacobian(const Eigen::Matrix2d& r
   return D;
 }
 
-double NeoHookeanTriangleEnergy(const Vec6& x, const Eigen::Matrix2d& rest_inverse,
-                                double volume_m3, const NeoHookeanParameters& parameters,
-                                Vec6* gradient, Mat6* hessian, bool project_hessian) {
+double TriangleEnergy(EnergyDensity energy_density, const Vec6& x,
+                      const Eigen::Matrix2d& rest_inverse, double volume_m3,
+                      const NeoHookeanParameters& parameters, Vec6* gradient, Mat6* hessian,
+                      bool project_hessian) {
   Eigen::Matrix2d Ds;
   Ds << x(2) - x(0), x(4) - x(0), x(3) - x(1), x(5) - x(1);
   const Eigen::Matrix2d F = Ds * rest_inverse;
   Eigen::Matrix2d P;
   Eigen::Matrix4d dPdF;
   const bool need_derivatives = gradient != nullptr || hessian != nullptr;
-  const double density = NeoHookeanDensity(F, parameters, need_derivatives ? &P : nullptr,
-                                           hessian != nullptr ? &dPdF : nullptr);
+  const double density = energy_density(F, parameters, need_derivatives ? &P : nullptr,
+                                        hessian != nullptr ? &dPdF : nullptr);
   if (!std::isfinite(density)) return density;
   if (gradient != nullptr) {
     // dE/d(node 1) = V P B^T col 0, node 2 col 1, node 0 minus their sum.
@@ -91,6 +92,13 @@ double NeoHookeanTriangleEnergy(const Vec6& x, const Eigen::Matrix2d& rest_inver
     hessian->noalias() = volume_m3 * D.transpose() * dPdF * D;
   }
   return volume_m3 * density;
+}
+
+double NeoHookeanTriangleEnergy(const Vec6& x, const Eigen::Matrix2d& rest_inverse,
+                                double volume_m3, const NeoHookeanParameters& parameters,
+                                Vec6* gradient, Mat6* hessian, bool project_hessian) {
+  return TriangleEnergy(&NeoHookeanDensity, x, rest_inverse, volume_m3, parameters, gradient,
+                        hessian, project_hessian);
 }
 
 }  // namespace calib::synth

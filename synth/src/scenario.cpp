@@ -3,6 +3,8 @@
 #include "calib/core/enum_names.h"
 #include "calib/core/yaml_map_reader.h"
 
+#include "object_outline.h"
+
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
@@ -20,6 +22,28 @@ constexpr auto kScenarioKindNames = std::to_array<EnumName<ScenarioKind>>({
     {ScenarioKind::kPush, "push"},
     {ScenarioKind::kHang, "hang"},
 });
+constexpr auto kObjectShapeNames = std::to_array<EnumName<ObjectShape>>({
+    {ObjectShape::kRectangle, "rectangle"},
+    {ObjectShape::kWaist, "waist"},
+    {ObjectShape::kRounded, "rounded"},
+    {ObjectShape::kNotched, "notched"},
+    {ObjectShape::kLShape, "l_shape"},
+});
+constexpr auto kObjectSideNames = std::to_array<EnumName<ObjectSide>>({
+    {ObjectSide::kNear, "near"},
+    {ObjectSide::kFar, "far"},
+    {ObjectSide::kLeft, "left"},
+    {ObjectSide::kRight, "right"},
+});
+constexpr auto kObjectCornerNames = std::to_array<EnumName<ObjectCorner>>({
+    {ObjectCorner::kNearLeft, "near_left"},
+    {ObjectCorner::kNearRight, "near_right"},
+    {ObjectCorner::kFarLeft, "far_left"},
+    {ObjectCorner::kFarRight, "far_right"},
+});
+
+/// The corner radius a file naming shape rounded without one gets, mm.
+constexpr double kDefaultCornerRadiusMm = 8.0;
 
 }  // namespace
 
@@ -27,6 +51,19 @@ std::string ToString(ScenarioKind kind) { return EnumToString(kScenarioKindNames
 
 ScenarioKind ScenarioKindFromString(const std::string& text) {
   return EnumFromString(kScenarioKindNames, "scenario kind", text);
+}
+
+std::string ToString(ObjectShape shape) { return EnumToString(kObjectShapeNames, shape); }
+ObjectShape ObjectShapeFromString(const std::string& text) {
+  return EnumFromString(kObjectShapeNames, "object shape", text);
+}
+std::string ToString(ObjectSide side) { return EnumToString(kObjectSideNames, side); }
+ObjectSide ObjectSideFromString(const std::string& text) {
+  return EnumFromString(kObjectSideNames, "object side", text);
+}
+std::string ToString(ObjectCorner corner) { return EnumToString(kObjectCornerNames, corner); }
+ObjectCorner ObjectCornerFromString(const std::string& text) {
+  return EnumFromString(kObjectCornerNames, "object corner", text);
 }
 
 std::vector<std::string> Effects::EnabledNames() const {
@@ -83,11 +120,53 @@ using yaml_reader::MapReader;
 
 [[noreturn]] void RaiseScenarioError(const std::string& message) { throw ScenarioError(message); }
 
+// Reads `key` as a name `from_string` knows (throwing std::invalid_argument
+// with the names it knows otherwise) into *value when the map has it.
+template <typename E>
+void ReadEnum(MapReader& r, const std::string& key, E* value, E (*from_string)(const std::string&)) {
+  if (!r.Has(key)) return;
+  const YAML::Node n = r.Get(key);
+  try {
+    if (!n.IsScalar()) throw std::invalid_argument("expected a name");
+    *value = from_string(n.Scalar());
+  } catch (const std::invalid_argument& e) {
+    r.Fail(r.KeyPath(key), n, e.what());
+  }
+}
+
 void ReadObject(MapReader r, ObjectSpec* o) {
+  const bool shape_named = r.Has("shape");
+  ReadEnum(r, "shape", &o->shape, &ObjectShapeFromString);
   r.Read("width_mm", &o->width_mm);
   r.Read("height_mm", &o->height_mm);
   r.Read("waist_mm", &o->waist_mm);
+  r.Read("corner_radius_mm", &o->corner_radius_mm);
+  if (r.Has("notch")) {
+    MapReader c = r.OptionalChild("notch");
+    NotchSpec notch;
+    ReadEnum(c, "side", &notch.side, &ObjectSideFromString);
+    c.Read("position_fraction", &notch.position_fraction);
+    c.Read("width_mm", &notch.width_mm);
+    c.Read("depth_mm", &notch.depth_mm);
+    c.Finish();
+    o->notch = notch;
+  }
+  if (r.Has("cutout")) {
+    MapReader c = r.OptionalChild("cutout");
+    CutoutSpec cutout;
+    ReadEnum(c, "corner", &cutout.corner, &ObjectCornerFromString);
+    c.Read("width_mm", &cutout.width_mm);
+    c.Read("height_mm", &cutout.height_mm);
+    c.Finish();
+    o->cutout = cutout;
+  }
+  r.Read("rotation_deg", &o->rotation_deg);
   r.Finish();
+  // Files from before shapes had names give only a waist.
+  if (!shape_named && o->waist_mm > 0.0) o->shape = ObjectShape::kWaist;
+  if (o->shape == ObjectShape::kRounded && !o->corner_radius_mm) o->corner_radius_mm = kDefaultCornerRadiusMm;
+  if (o->shape == ObjectShape::kNotched && !o->notch) o->notch = NotchSpec{};
+  if (o->shape == ObjectShape::kLShape && !o->cutout) o->cutout = CutoutSpec{};
 }
 
 void ReadPush(MapReader r, PushSpec* p) {
@@ -196,6 +275,7 @@ void ReadTop(MapReader& r, Scenario* s) {
   }
   if (r.Has("material")) {
     MapReader m = r.Child("material");
+    ReadEnum(m, "law", &s->material.law, &MaterialLawFromString);
     m.Read("youngs_modulus_pa", &s->material.youngs_modulus_pa);
     m.Read("poisson_ratio", &s->material.poisson_ratio);
     m.Read("thickness_mm", &s->material.thickness_mm);
@@ -260,6 +340,121 @@ class Checker {
   std::string message_;
 };
 
+// The shape's own keys: the ones of object.shape only, each in range.
+void CheckShape(const Scenario& s, Checker& c) {
+  const ObjectSpec& o = s.object;
+  const double smaller = std::min(o.width_mm, o.height_mm);
+  const std::string shape = ToString(o.shape);
+  if (o.shape == ObjectShape::kWaist) {
+    c.Require(std::isfinite(o.waist_mm) && o.waist_mm > 0.0 && o.waist_mm < 0.35 * smaller,
+              "object.waist_mm", o.waist_mm,
+              "0 < object.waist_mm < 0.35 * min(object.width_mm, object.height_mm) for shape waist");
+  } else {
+    c.Require(o.waist_mm == 0.0, "object.waist_mm", o.waist_mm,
+              "object.waist_mm is 0 unless object.shape is waist (object.shape is " + shape + ")");
+  }
+  if (o.corner_radius_mm) {
+    c.Require(o.shape == ObjectShape::kRounded, "object.corner_radius_mm", *o.corner_radius_mm,
+              "only shape rounded has a corner radius (object.shape is " + shape + ")");
+    c.Require(std::isfinite(*o.corner_radius_mm) && *o.corner_radius_mm > 0.0 &&
+                  *o.corner_radius_mm <= 0.45 * smaller,
+              "object.corner_radius_mm", *o.corner_radius_mm,
+              "0 < object.corner_radius_mm <= 0.45 * min(object.width_mm, object.height_mm)");
+  }
+  // At least 2 px: a notch or cutout the fine mesh can resolve.
+  const auto at_least_2px = [&](double mm, const std::string& key) {
+    c.Require(std::isfinite(mm) && mm / s.mm_per_px >= 2.0, key, mm, key + " / mm_per_px >= 2 (2 px)");
+  };
+  if (o.notch) {
+    const NotchSpec& n = *o.notch;
+    c.Require(o.shape == ObjectShape::kNotched, "object.notch", ToString(n.side),
+              "only shape notched has a notch (object.shape is " + shape + ")");
+    const bool across = n.side == ObjectSide::kNear || n.side == ObjectSide::kFar;
+    const double length = across ? o.width_mm : o.height_mm;
+    const double thickness = across ? o.height_mm : o.width_mm;
+    c.InRange(n.position_fraction, 0.0, 1.0, "object.notch.position_fraction");
+    c.Positive(n.width_mm, "object.notch.width_mm");
+    c.Positive(n.depth_mm, "object.notch.depth_mm");
+    at_least_2px(n.width_mm, "object.notch.width_mm");
+    at_least_2px(n.depth_mm, "object.notch.depth_mm");
+    c.Require(n.position_fraction * length > 0.5 * n.width_mm &&
+                  n.position_fraction * length < length - 0.5 * n.width_mm,
+              "object.notch.position_fraction", n.position_fraction,
+              "the notch lies inside its side: object.notch.width_mm / 2 < position_fraction * "
+              "side length < side length - width_mm / 2");
+    c.Require(n.depth_mm < 0.5 * thickness, "object.notch.depth_mm", n.depth_mm,
+              "object.notch.depth_mm < half the object's size across the notched side");
+  }
+  if (o.cutout) {
+    const CutoutSpec& k = *o.cutout;
+    c.Require(o.shape == ObjectShape::kLShape, "object.cutout", ToString(k.corner),
+              "only shape l_shape has a cutout (object.shape is " + shape + ")");
+    c.Require(std::isfinite(k.width_mm) && k.width_mm > 0.0 && k.width_mm <= 0.8 * o.width_mm,
+              "object.cutout.width_mm", k.width_mm, "0 < object.cutout.width_mm <= 0.8 * object.width_mm");
+    c.Require(std::isfinite(k.height_mm) && k.height_mm > 0.0 && k.height_mm <= 0.8 * o.height_mm,
+              "object.cutout.height_mm", k.height_mm,
+              "0 < object.cutout.height_mm <= 0.8 * object.height_mm");
+    at_least_2px(k.width_mm, "object.cutout.width_mm");
+    at_least_2px(k.height_mm, "object.cutout.height_mm");
+  }
+  c.InRange(o.rotation_deg, -180.0, 180.0, "object.rotation_deg");
+  if (s.kind == ScenarioKind::kHang) {
+    c.Require(o.rotation_deg == 0.0, "object.rotation_deg", o.rotation_deg,
+              "object.rotation_deg is 0 for kind hang (the clamp holds the top edge)");
+  }
+}
+
+// The scene in the image: the (turned) object with 2 px to spare, the finger
+// and pencil discs inside the image and touching the outline, the push no
+// deeper than half the object under the finger.
+void CheckFit(const Scenario& s, Checker& c) {
+  const RectPx r = ObjectRectPx(s);
+  c.Require(r.width >= 12.0 && r.height >= 12.0, "object.width_mm", s.object.width_mm,
+            "the object spans at least 12 px each way (width_mm, height_mm / mm_per_px)");
+  c.Require(r.x >= 2.0 && r.x + r.width <= s.camera.width_px - 2.0, "object.width_mm",
+            s.object.width_mm, "the object fits in camera.width_px with 2 px to spare");
+  c.Require(r.y >= 2.0 && r.y + r.height <= s.camera.height_px - 2.0, "object.height_mm",
+            s.object.height_mm, "the object fits in camera.height_px with 2 px to spare");
+  if (!c.ok()) return;
+  if (s.object.rotation_deg != 0.0) {
+    bool inside = true;
+    for (const Vec2& p : RestPolygonPx(s)) {
+      inside = inside && p.x() >= 2.0 && p.x() <= s.camera.width_px - 2.0 && p.y() >= 2.0 &&
+               p.y() <= s.camera.height_px - 2.0;
+    }
+    c.Require(inside, "object.rotation_deg", s.object.rotation_deg,
+              "the turned object fits in the image with 2 px to spare");
+  }
+  if (s.kind != ScenarioKind::kPush || !c.ok()) return;
+  const PushSpec& p = s.push;
+  const std::vector<Vec2> outline = outline_detail::UnturnedOutlinePx(s);
+  const double finger_x =
+      r.x + (p.position_mm ? *p.position_mm / s.mm_per_px : p.position_fraction * r.width);
+  const double finger_r = p.finger_radius_mm / s.mm_per_px;
+  const double contact = outline_detail::FirstTouchFromAbove(outline, finger_x, finger_r);
+  c.Require(std::isfinite(contact), "push.position_fraction", p.position_fraction,
+            "the finger meets the object");
+  if (s.object.shape != ObjectShape::kRectangle && s.object.shape != ObjectShape::kWaist) {
+    const double far = outline_detail::FirstTouchFromBelow(outline, finger_x, 0.0);
+    c.Require(p.depth_mm / s.mm_per_px < 0.5 * (far - (contact + finger_r)), "push.depth_mm", p.depth_mm,
+              "push.depth_mm < half the object's thickness under the finger");
+  }
+  const double pencil_x = r.x + p.pencil_position_fraction * r.width;
+  c.Require(std::isfinite(outline_detail::FirstTouchFromBelow(outline, pencil_x,
+                                                              p.pencil_radius_mm / s.mm_per_px)),
+            "push.pencil_position_fraction", p.pencil_position_fraction, "the pencil meets the object");
+  if (!c.ok()) return;
+  const auto tracks = ObstacleTracksPx(s);
+  const auto inside_image = [&](const Disc& d) {
+    return d.centre.x() - d.radius_px >= 0.0 && d.centre.x() + d.radius_px <= s.camera.width_px &&
+           d.centre.y() - d.radius_px >= 0.0 && d.centre.y() + d.radius_px <= s.camera.height_px;
+  };
+  c.Require(inside_image(tracks.front()[0]), "push.start_gap_mm", p.start_gap_mm,
+            "the finger starts inside the image (its disc, gap + 2 radius beyond the near side)");
+  c.Require(inside_image(tracks.front()[1]), "push.pencil_gap_mm", p.pencil_gap_mm,
+            "the pencil lies inside the image");
+}
+
 }  // namespace
 
 bool Scenario::IsValid(std::string* error) const {
@@ -275,10 +470,7 @@ bool Scenario::IsValid(std::string* error) const {
   c.Require(frames >= 2 && frames <= 100000, "frames", frames, "2 <= frames <= 100000");
   c.Positive(object.width_mm, "object.width_mm");
   c.Positive(object.height_mm, "object.height_mm");
-  c.Require(std::isfinite(object.waist_mm) && object.waist_mm >= 0.0 &&
-                object.waist_mm < 0.35 * std::min(object.width_mm, object.height_mm),
-            "object.waist_mm", object.waist_mm,
-            "0 <= object.waist_mm < 0.35 * min(object.width_mm, object.height_mm)");
+  CheckShape(*this, c);
   if (kind == ScenarioKind::kPush) {
     c.Positive(push.finger_radius_mm, "push.finger_radius_mm");
     c.InRange(push.position_fraction, 0.0, 1.0, "push.position_fraction");
@@ -378,25 +570,7 @@ bool Scenario::IsValid(std::string* error) const {
   c.Require(simulation.max_newton_iterations >= 1, "simulation.max_newton_iterations",
             simulation.max_newton_iterations, "simulation.max_newton_iterations >= 1");
 
-  // Does the scene fit in the image?
-  if (c.ok()) {
-    const RectPx r = ObjectRectPx(*this);
-    c.Require(r.width >= 12.0 && r.height >= 12.0, "object.width_mm", object.width_mm,
-              "the object spans at least 12 px each way (width_mm, height_mm / mm_per_px)");
-    c.Require(r.x >= 2.0 && r.x + r.width <= camera.width_px - 2.0, "object.width_mm",
-              object.width_mm, "the object fits in camera.width_px with 2 px to spare");
-    c.Require(r.y >= 2.0 && r.y + r.height <= camera.height_px - 2.0, "object.height_mm",
-              object.height_mm, "the object fits in camera.height_px with 2 px to spare");
-    if (kind == ScenarioKind::kPush && c.ok()) {
-      const auto tracks = ObstacleTracksPx(*this);
-      const Disc& finger = tracks.front()[0];
-      const Disc& pencil = tracks.front()[1];
-      c.Require(finger.centre.y() - finger.radius_px >= 0.0, "push.start_gap_mm", push.start_gap_mm,
-                "the finger starts inside the image (gap + 2 radius above the object)");
-      c.Require(pencil.centre.y() + pencil.radius_px <= camera.height_px, "push.pencil_gap_mm",
-                push.pencil_gap_mm, "the pencil lies inside the image");
-    }
-  }
+  if (c.ok()) CheckFit(*this, c);  // does the scene fit in the image?
   if (!c.ok() && error) *error = c.message();
   return c.ok();
 }

@@ -3,12 +3,13 @@
 
 #include "calib/synth/scenario.h"
 
+#include "object_outline.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 
 namespace calib::synth {
-
 
 RectPx ObjectRectPx(const Scenario& s) {
   const double w = std::round(s.object.width_mm / s.mm_per_px);
@@ -20,14 +21,9 @@ RectPx ObjectRectPx(const Scenario& s) {
 }
 
 std::vector<Vec2> RestPolygonPx(const Scenario& s) {
-  const RectPx r = ObjectRectPx(s);
-  const double x0 = r.x, y0 = r.y, x1 = r.x + r.width, y1 = r.y + r.height;
-  const double d = std::round(s.object.waist_mm / s.mm_per_px);
-  if (d <= 0.0) return {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
-  const double ya = y0 + 0.35 * r.height, yb = y0 + 0.45 * r.height;
-  const double yc = y0 + 0.55 * r.height, yd = y0 + 0.65 * r.height;
-  return {{x0, y0},     {x1, y0}, {x1, ya}, {x1 - d, yb}, {x1 - d, yc}, {x1, yd},
-          {x1, y1},     {x0, y1}, {x0, yd}, {x0 + d, yc}, {x0 + d, yb}, {x0, ya}};
+  std::vector<Vec2> polygon = outline_detail::UnturnedOutlinePx(s);
+  for (Vec2& p : polygon) p = outline_detail::TurnPx(s, p);
+  return polygon;
 }
 
 namespace {
@@ -49,16 +45,24 @@ std::vector<std::vector<Disc>> ObstacleTracksPx(const Scenario& s) {
   const double pencil_r = p.pencil_radius_mm / s.mm_per_px;
   const double finger_x =
       r.x + (p.position_mm ? *p.position_mm / s.mm_per_px : p.position_fraction * r.width);
-  const double y_start = r.y - finger_r - p.start_gap_mm / s.mm_per_px;
-  const double y_deep = r.y - finger_r + p.depth_mm / s.mm_per_px;
+  // In the object's own frame the finger moves down onto the outline and the
+  // pencil stands below it; both then turn with the object.
+  const std::vector<Vec2> outline = outline_detail::UnturnedOutlinePx(s);
+  const double contact = outline_detail::FirstTouchFromAbove(outline, finger_x, finger_r);
+  const double y_start = contact - p.start_gap_mm / s.mm_per_px;
+  const double y_deep = contact + p.depth_mm / s.mm_per_px;
   const double retract_start = p.delay_s + p.approach_s + p.hold_s;
-  const Disc pencil{Vec2(r.x + p.pencil_position_fraction * r.width,
-                         r.y + r.height + pencil_r + p.pencil_gap_mm / s.mm_per_px),
+  const double pencil_x = r.x + p.pencil_position_fraction * r.width;
+  const Disc pencil{outline_detail::TurnPx(
+                        s, Vec2(pencil_x, outline_detail::FirstTouchFromBelow(outline, pencil_x, pencil_r) +
+                                              p.pencil_gap_mm / s.mm_per_px)),
                     pencil_r};
   for (int f = 0; f < s.frames; ++f) {
     const double t = f / s.fps;
     const double in = Ramp(t, p.delay_s, p.approach_s) - Ramp(t, retract_start, p.retract_s);
-    tracks[f] = {Disc{Vec2(finger_x, y_start + in * (y_deep - y_start)), finger_r}, pencil};
+    tracks[f] = {
+        Disc{outline_detail::TurnPx(s, Vec2(finger_x, y_start + in * (y_deep - y_start))), finger_r},
+        pencil};
   }
   return tracks;
 }
@@ -77,6 +81,7 @@ std::vector<RectPx> ClampRectsPx(const Scenario& s) {
 
 TruthMaterial ToTruthMaterial(const Scenario& s) {
   TruthMaterial m;
+  m.law = s.material.law;
   m.youngs_modulus_pa = s.material.youngs_modulus_pa;
   m.poisson_ratio = s.material.poisson_ratio;
   m.thickness_m = s.material.thickness_mm * 1e-3;
@@ -84,11 +89,14 @@ TruthMaterial ToTruthMaterial(const Scenario& s) {
   const Effects& e = s.effects;
   if (e.uneven_stiffness) {
     m.stiffness_gradient = e.uneven_stiffness->gradient;
-    m.stiffness_gradient_direction = e.uneven_stiffness->direction.normalized();
+    // Both turn with the object: they describe its material.
+    m.stiffness_gradient_direction =
+        outline_detail::TurnDirection(s, e.uneven_stiffness->direction.normalized());
     const RectPx r = ObjectRectPx(s);
     for (const auto& region : e.uneven_stiffness->regions) {
       m.stiffness_regions.push_back(StiffnessRegion{
-          Vec2(r.x + region.centre_fraction.x() * r.width, r.y + region.centre_fraction.y() * r.height),
+          outline_detail::TurnPx(s, Vec2(r.x + region.centre_fraction.x() * r.width,
+                                         r.y + region.centre_fraction.y() * r.height)),
           region.radius_mm / s.mm_per_px, region.factor});
     }
   }

@@ -36,9 +36,28 @@ std::string ScenarioToYaml(const Scenario& s) {
   out << YAML::Key << "seed" << YAML::Value << s.seed;
   out << YAML::Key << "notes" << YAML::Value << YAML::DoubleQuoted << s.notes;
   out << YAML::Key << "object" << YAML::Value << YAML::BeginMap;
-  EmitNum(out, "width_mm", s.object.width_mm);
-  EmitNum(out, "height_mm", s.object.height_mm);
-  EmitNum(out, "waist_mm", s.object.waist_mm);
+  const ObjectSpec& o = s.object;
+  out << YAML::Key << "shape" << YAML::Value << ToString(o.shape);
+  EmitNum(out, "width_mm", o.width_mm);
+  EmitNum(out, "height_mm", o.height_mm);
+  EmitNum(out, "waist_mm", o.waist_mm);
+  if (o.corner_radius_mm) EmitNum(out, "corner_radius_mm", *o.corner_radius_mm);
+  if (o.notch) {
+    out << YAML::Key << "notch" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "side" << YAML::Value << ToString(o.notch->side);
+    EmitNum(out, "position_fraction", o.notch->position_fraction);
+    EmitNum(out, "width_mm", o.notch->width_mm);
+    EmitNum(out, "depth_mm", o.notch->depth_mm);
+    out << YAML::EndMap;
+  }
+  if (o.cutout) {
+    out << YAML::Key << "cutout" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "corner" << YAML::Value << ToString(o.cutout->corner);
+    EmitNum(out, "width_mm", o.cutout->width_mm);
+    EmitNum(out, "height_mm", o.cutout->height_mm);
+    out << YAML::EndMap;
+  }
+  EmitNum(out, "rotation_deg", o.rotation_deg);
   out << YAML::EndMap;
   if (s.kind == ScenarioKind::kPush) {
     const PushSpec& p = s.push;
@@ -64,6 +83,7 @@ std::string ScenarioToYaml(const Scenario& s) {
     out << YAML::EndMap;
   }
   out << YAML::Key << "material" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "law" << YAML::Value << ToString(s.material.law);
   EmitNum(out, "youngs_modulus_pa", s.material.youngs_modulus_pa);
   EmitNum(out, "poisson_ratio", s.material.poisson_ratio);
   EmitNum(out, "thickness_mm", s.material.thickness_mm);

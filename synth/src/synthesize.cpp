@@ -4,6 +4,7 @@
 #include "calib/evaluator/json_number.h"
 #include "calib/synth/renderer.h"
 #include "random.h"
+#include "yaml_json.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -24,35 +25,6 @@ using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
-}
-
-// The scenario's YAML as JSON: plain scalars become numbers or booleans where
-// they read as such, quoted scalars stay strings.
-nlohmann::json YamlToJson(const YAML::Node& node) {
-  if (node.IsMap()) {
-    nlohmann::json out = nlohmann::json::object();
-    for (const auto& kv : node) out[kv.first.Scalar()] = YamlToJson(kv.second);
-    return out;
-  }
-  if (node.IsSequence()) {
-    nlohmann::json out = nlohmann::json::array();
-    for (const auto& item : node) out.push_back(YamlToJson(item));
-    return out;
-  }
-  if (!node.IsScalar()) return nullptr;
-  const std::string& text = node.Scalar();
-  if (node.Tag() == "!") return text;
-  if (text == "true") return true;
-  if (text == "false") return false;
-  try {
-    size_t used = 0;
-    const long long i = std::stoll(text, &used);
-    if (used == text.size()) return i;
-    const double d = std::stod(text, &used);
-    if (used == text.size()) return d;
-  } catch (const std::exception&) {
-  }
-  return text;
 }
 
 nlohmann::json Json(const Vec2& v) { return nlohmann::json::array({v.x(), v.y()}); }
@@ -105,7 +77,8 @@ nlohmann::json MaterialJson(const TruthMaterial& m) {
   for (const auto& r : m.stiffness_regions) {
     regions.push_back({{"centre_px", Json(r.centre_px)}, {"radius_px", r.radius_px}, {"factor", r.factor}});
   }
-  return {{"youngs_modulus_pa", m.youngs_modulus_pa},
+  return {{"law", ToString(m.law)},
+          {"youngs_modulus_pa", m.youngs_modulus_pa},
           {"poisson_ratio", m.poisson_ratio},
           {"thickness_m", m.thickness_m},
           {"density_kg_m3", m.density_kg_m3},

@@ -328,7 +328,7 @@ class Simulation {
     const double kappa =
         options.contact_stiffness_scale * max_modulus * material.thickness_m * mean_edge_m / dhat;
     system_ = std::make_unique<System>(std::move(elements), std::move(mass), std::move(fixed),
-                                       dhat, kappa);
+                                       dhat, kappa, DensityOf(material.law));
     x_prev_ = x_;
     v_ = v_prev_ = Eigen::VectorXd::Zero(2 * n);
   }

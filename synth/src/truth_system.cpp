@@ -33,8 +33,10 @@ BarrierValue Barrier(double d, double dhat, double kappa) {
 }  // namespace
 
 System::System(std::vector<Element> elements, Eigen::VectorXd node_mass_kg,
-               std::vector<char> fixed, double barrier_distance_m, double barrier_stiffness_n_m)
+               std::vector<char> fixed, double barrier_distance_m, double barrier_stiffness_n_m,
+               EnergyDensity density)
     : elements_(std::move(elements)),
+      density_(density),
       mass_(std::move(node_mass_kg)),
       fixed_(std::move(fixed)),
       dhat_(barrier_distance_m),
@@ -101,9 +103,8 @@ double System::ElasticEnergy(const Eigen::VectorXd& x, Eigen::VectorXd* gradient
       const NeoHookeanParameters& p = branch == 0 ? e.elastic : e.viscous;
       if (p.mu_pa == 0.0) continue;
       const Eigen::Matrix2d& B = branch == 0 ? e.elastic_rest_inverse : e.viscous_rest_inverse;
-      const double w = NeoHookeanTriangleEnergy(xe, B, e.volume_m3, p,
-                                                gradient != nullptr ? &g : nullptr, nullptr,
-                                                false);
+      const double w = TriangleEnergy(density_, xe, B, e.volume_m3, p,
+                                      gradient != nullptr ? &g : nullptr, nullptr, false);
       if (!std::isfinite(w)) return kInf;
       energy += w;
       if (gradient != nullptr) {
@@ -255,7 +256,7 @@ double System::Assemble(const Eigen::VectorXd& x, const StepTerms& terms,
       const NeoHookeanParameters& p = branch == 0 ? e.elastic : e.viscous;
       if (p.mu_pa == 0.0) continue;
       const Eigen::Matrix2d& B = branch == 0 ? e.elastic_rest_inverse : e.viscous_rest_inverse;
-      const double w = NeoHookeanTriangleEnergy(xe, B, e.volume_m3, p, &g, &h, true);
+      const double w = TriangleEnergy(density_, xe, B, e.volume_m3, p, &g, &h, true);
       if (!std::isfinite(w)) return kInf;
       energy += w;
       for (int a = 0; a < 3; ++a) gradient.segment<2>(2 * e.nodes[a]) += g.segment<2>(2 * a);

@@ -6,7 +6,7 @@
 // (x0, y0, x1, y1, ...), energies in joules, gradients in newtons. One step
 // minimises
 //
-//   Phi(x) = sum_T E_T(x)                          elastic (neo_hookean.h)
+//   Phi(x) = sum_T E_T(x)                          elastic (neo_hookean.h, hencky.h)
 //          - sum_i m_i a . x_i                     body force (gravity, bend)
 //          + sum_i mu m_i g_table f0(|x_i - xa_i|) table friction (IPC 2020 eq. 21)
 //          + 1/(2 h^2) |x - x_hat|^2_M             inertia (BDF2 or implicit Euler)
@@ -79,9 +79,10 @@ struct NewtonResult {
 
 class System {
  public:
-  /// `fixed` (#N) marks clamped nodes; masses (#N) in kg.
+  /// `fixed` (#N) marks clamped nodes; masses (#N) in kg; `density` is the
+  /// material law of every element's branches (NeoHookeanDensity, ...).
   System(std::vector<Element> elements, Eigen::VectorXd node_mass_kg, std::vector<char> fixed,
-         double barrier_distance_m, double barrier_stiffness_n_m);
+         double barrier_distance_m, double barrier_stiffness_n_m, EnergyDensity density);
 
   int NumNodes() const { return static_cast<int>(mass_.size()); }
   std::vector<Element>& elements() { return elements_; }
@@ -134,6 +135,7 @@ class System {
   bool SolveWithStaleFactor(const Eigen::VectorXd& rhs, Eigen::VectorXd& solution) const;
 
   std::vector<Element> elements_;
+  EnergyDensity density_;
   Eigen::VectorXd mass_;
   std::vector<char> fixed_;
   double dhat_;

@@ -1,112 +1,29 @@
 #include "calib/synth/neo_hookean.h"
 
+#include "triangle_checks.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
 
 namespace calib::synth {
 namespace {
 
-// A fixed, well-shaped rest triangle (metres) and its rest data.
-struct RestTriangle {
-  Vec6 x;
-  Eigen::Matrix2d rest_inverse;
-  double volume_m3;
-};
-
-RestTriangle MakeRest(double scale) {
-  RestTriangle r;
-  r.x << 0.0, 0.0, 1.0 * scale, 0.1 * scale, 0.3 * scale, 0.9 * scale;
-  Eigen::Matrix2d dm;
-  dm << r.x(2) - r.x(0), r.x(4) - r.x(0), r.x(3) - r.x(1), r.x(5) - r.x(1);
-  r.rest_inverse = dm.inverse();
-  r.volume_m3 = 0.5 * dm.determinant() * 0.02;
-  return r;
-}
-
-NeoHookeanParameters Parameters(double stiffening) {
-  NeoHookeanParameters p = PlaneStressLame(30e3, 0.3);
-  p.stiffening = stiffening;
-  return p;
-}
-
-// Random deformations: F = rotation * symmetric stretch in [0.6, 1.5], plus a
-// translation; seeded, so every run checks the same states.
-std::vector<Vec6> Deformations(const RestTriangle& rest, double scale, int count) {
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::vector<Vec6> out;
-  for (int k = 0; k < count; ++k) {
-    const double angle = 6.28 * u(rng);
-    Eigen::Matrix2d R;
-    R << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle);
-    const double s1 = 0.6 + 0.9 * u(rng), s2 = 0.6 + 0.9 * u(rng), phi = 3.14 * u(rng);
-    Eigen::Matrix2d Q;
-    Q << std::cos(phi), -std::sin(phi), std::sin(phi), std::cos(phi);
-    const Eigen::Matrix2d F = R * Q * Eigen::Vector2d(s1, s2).asDiagonal() * Q.transpose();
-    const Vec2 t(scale * u(rng), scale * u(rng));
-    Vec6 x;
-    for (int a = 0; a < 3; ++a) x.segment<2>(2 * a) = F * rest.x.segment<2>(2 * a) + t;
-    out.push_back(x);
-  }
-  return out;
-}
+using testing::Deformations;
+using testing::MakeRest;
+using testing::Parameters;
+using testing::RestTriangle;
 
 double Energy(const RestTriangle& r, const Vec6& x, const NeoHookeanParameters& p) {
   return NeoHookeanTriangleEnergy(x, r.rest_inverse, r.volume_m3, p, nullptr, nullptr, false);
 }
 
 TEST(NeoHookean, GradientMatchesCentralDifferencesAtAllScales) {
-  for (const double scale : {1e-3, 1.0, 1e3}) {
-    for (const double stiffening : {0.0, 2.0}) {
-      const RestTriangle rest = MakeRest(scale);
-      const NeoHookeanParameters p = Parameters(stiffening);
-      for (const Vec6& x : Deformations(rest, scale, 10)) {
-        Vec6 g;
-        NeoHookeanTriangleEnergy(x, rest.rest_inverse, rest.volume_m3, p, &g, nullptr, false);
-        const double h = 1e-6 * scale;
-        double worst = 0.0;
-        for (int k = 0; k < 6; ++k) {
-          Vec6 xp = x, xm = x;
-          xp(k) += h;
-          xm(k) -= h;
-          const double numeric = (Energy(rest, xp, p) - Energy(rest, xm, p)) / (2.0 * h);
-          worst = std::max(worst, std::abs(numeric - g(k)));
-        }
-        EXPECT_LE(worst, 1e-6 * g.cwiseAbs().maxCoeff())
-            << "scale " << scale << " stiffening " << stiffening << " worst error " << worst;
-      }
-    }
-  }
+  testing::ExpectGradientMatchesDifferences(&NeoHookeanTriangleEnergy);
 }
 
 TEST(NeoHookean, HessianMatchesDifferencesOfTheGradient) {
-  for (const double scale : {1e-3, 1.0, 1e3}) {
-    for (const double stiffening : {0.0, 2.0}) {
-      const RestTriangle rest = MakeRest(scale);
-      const NeoHookeanParameters p = Parameters(stiffening);
-      for (const Vec6& x : Deformations(rest, scale, 10)) {
-        Mat6 H;
-        Vec6 g;
-        NeoHookeanTriangleEnergy(x, rest.rest_inverse, rest.volume_m3, p, &g, &H, false);
-        const double h = 1e-6 * scale;
-        Mat6 numeric;
-        for (int k = 0; k < 6; ++k) {
-          Vec6 xp = x, xm = x, gp, gm;
-          xp(k) += h;
-          xm(k) -= h;
-          NeoHookeanTriangleEnergy(xp, rest.rest_inverse, rest.volume_m3, p, &gp, nullptr, false);
-          NeoHookeanTriangleEnergy(xm, rest.rest_inverse, rest.volume_m3, p, &gm, nullptr, false);
-          numeric.col(k) = (gp - gm) / (2.0 * h);
-        }
-        const double worst = (numeric - H).cwiseAbs().maxCoeff();
-        EXPECT_LE(worst, 1e-6 * H.cwiseAbs().maxCoeff())
-            << "scale " << scale << " stiffening " << stiffening << " worst error " << worst;
-        EXPECT_LE((H - H.transpose()).cwiseAbs().maxCoeff(), 1e-12 * H.cwiseAbs().maxCoeff());
-      }
-    }
-  }
+  testing::ExpectHessianMatchesDifferences(&NeoHookeanTriangleEnergy, 1e-12);
 }
 
 TEST(NeoHookean, ZeroEnergyAndForceAtRestAndUnderRigidMotion) {
@@ -152,18 +69,7 @@ TEST(NeoHookean, EnergyAndForcesAreInvariantUnderRigidMotion) {
 }
 
 TEST(NeoHookean, SmallStrainMatchesPlaneStressHooke) {
-  // Uniaxial stress in plane stress: F = diag(1 + e, 1 - nu e) gives
-  // P00 = E e and P11 = 0 to first order.
-  const double E = 30e3, nu = 0.3, e = 1e-6;
-  const NeoHookeanParameters p = PlaneStressLame(E, nu);
-  Eigen::Matrix2d F = Eigen::Matrix2d::Identity();
-  F(0, 0) += e;
-  F(1, 1) -= nu * e;
-  Eigen::Matrix2d P;
-  NeoHookeanDensity(F, p, &P, nullptr);
-  EXPECT_NEAR(P(0, 0), E * e, 1e-4 * E * e);
-  EXPECT_NEAR(P(1, 1), 0.0, 1e-4 * E * e);
-  EXPECT_NEAR(P(0, 1), 0.0, 1e-12 * E);
+  testing::ExpectUniaxialPlaneStressHooke(&NeoHookeanDensity);
 }
 
 TEST(NeoHookean, InvertedOrDegenerateElementIsInfeasible) {
@@ -183,16 +89,8 @@ TEST(NeoHookean, InvertedOrDegenerateElementIsInfeasible) {
 TEST(NeoHookean, ProjectedHessianIsPositiveSemiDefiniteAndExactWhereConvex) {
   const RestTriangle rest = MakeRest(1.0);
   const NeoHookeanParameters p = Parameters(1.0);
-  int indefinite_seen = 0;
-  for (const Vec6& x : Deformations(rest, 1.0, 30)) {
-    Mat6 exact, projected;
-    NeoHookeanTriangleEnergy(x, rest.rest_inverse, rest.volume_m3, p, nullptr, &exact, false);
-    NeoHookeanTriangleEnergy(x, rest.rest_inverse, rest.volume_m3, p, nullptr, &projected, true);
-    const Eigen::SelfAdjointEigenSolver<Mat6> eig_p(projected);
-    EXPECT_GE(eig_p.eigenvalues().minCoeff(), -1e-9 * eig_p.eigenvalues().maxCoeff());
-    const Eigen::SelfAdjointEigenSolver<Mat6> eig_e(exact);
-    if (eig_e.eigenvalues().minCoeff() < -1e-9 * eig_e.eigenvalues().maxCoeff()) ++indefinite_seen;
-  }
+  const int indefinite_seen =
+      testing::ExpectProjectedHessiansPsd(&NeoHookeanTriangleEnergy, rest, Deformations(rest, 1.0, 30), p);
   EXPECT_GT(indefinite_seen, 0) << "the sample should include indefinite (compressed) states";
   // At rest the energy is convex: projection changes nothing.
   Mat6 exact, projected;

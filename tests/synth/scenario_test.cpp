@@ -4,6 +4,7 @@
 
 #include "calib/synth/scenario.h"
 
+#include "error_text.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -14,21 +15,12 @@
 namespace calib::synth {
 namespace {
 
-// Parses `text` and returns the error message ("" when it parsed).
-std::string ErrorOf(const std::string& text) {
-  try {
-    ParseScenario(text, "bad.yaml");
-  } catch (const ScenarioError& e) {
-    return e.what();
-  }
-  return "";
-}
-
+// Parses `text` as a scenario named bad.yaml: refused, naming the file and `parts`.
 void ExpectErrorNames(const std::string& text, const std::vector<std::string>& parts) {
-  const std::string error = ErrorOf(text);
-  ASSERT_FALSE(error.empty()) << "accepted:\n" << text;
+  const std::string error =
+      testing::ErrorOf<ScenarioError>([&] { ParseScenario(text, "bad.yaml"); });
+  testing::ExpectMessageNames(error, text, parts);
   EXPECT_NE(error.find("bad.yaml"), std::string::npos) << error;
-  for (const auto& part : parts) EXPECT_NE(error.find(part), std::string::npos) << error;
 }
 
 const char* kFullPush = R"(

@@ -38,7 +38,8 @@ namespace calib::synth {
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 
-/// Lame parameters of the energy density, pascals.
+/// Lame parameters of the energy density, pascals. The Hencky law
+/// (hencky.h) reads the same pair: its 2D bulk modulus is mu + lambda.
 struct NeoHookeanParameters {
   double mu_pa = 0.0;        ///< shear modulus, > 0
   double lambda_pa = 0.0;    ///< (plane-stress) first Lame parameter, >= 0
@@ -57,14 +58,24 @@ NeoHookeanParameters PlaneStressLame(double youngs_modulus_pa, double poisson_ra
 double NeoHookeanDensity(const Eigen::Matrix2d& F, const NeoHookeanParameters& parameters,
                          Eigen::Matrix2d* stress, Eigen::Matrix4d* stress_derivative);
 
-/// Energy of one triangle, joules. x = (x0, y0, x1, y1, x2, y2) in metres.
-/// When the element is not inverted, writes the gradient dE/dx (N; the
-/// element's forces on its nodes are its negative) and the 6 x 6 Hessian
-/// (N/m) where the pointers are not null. With project_hessian, dP/dF is
-/// projected onto the positive semi-definite cone before it is mapped to the
-/// nodes, so the Hessian is PSD (the projected Newton method of Teran et al.
-/// 2005); otherwise it is the exact second derivative. Returns +infinity for
-/// J <= 0 (nothing written).
+/// An energy density W(F) with the contract of NeoHookeanDensity (J/m^3; P
+/// and dP/dF written where not null; +infinity for J <= 0).
+using EnergyDensity = double (*)(const Eigen::Matrix2d& F, const NeoHookeanParameters& parameters,
+                                 Eigen::Matrix2d* stress, Eigen::Matrix4d* stress_derivative);
+
+/// Energy of one triangle of `density`, joules. x = (x0, y0, x1, y1, x2, y2)
+/// in metres. When the element is not inverted, writes the gradient dE/dx
+/// (N; the element's forces on its nodes are its negative) and the 6 x 6
+/// Hessian (N/m) where the pointers are not null. With project_hessian, dP/dF
+/// is projected onto the positive semi-definite cone before it is mapped to
+/// the nodes, so the Hessian is PSD (the projected Newton method of Teran et
+/// al. 2005); otherwise it is the exact second derivative. Returns +infinity
+/// for J <= 0 (nothing written).
+double TriangleEnergy(EnergyDensity density, const Vec6& x, const Eigen::Matrix2d& rest_inverse,
+                      double volume_m3, const NeoHookeanParameters& parameters, Vec6* gradient,
+                      Mat6* hessian, bool project_hessian);
+
+/// TriangleEnergy of NeoHookeanDensity.
 double NeoHookeanTriangleEnergy(const Vec6& x, const Eigen::Matrix2d& rest_inverse,
                                 double volume_m3, const NeoHookeanParameters& parameters,
                                 Vec6* gradient, Mat6* hessian, bool project_hessian);

@@ -7,6 +7,7 @@
 // *_s seconds, *_pa pascals, *_n newtons, *_rgb 8-bit colours (R, G, B).
 
 #include "calib/core/types.h"
+#include "calib/synth/material_law.h"
 #include "calib/synth/truth_simulator.h"
 
 #include <array>
@@ -33,29 +34,92 @@ std::string ToString(ScenarioKind kind);
 /// "push" or "hang"; throws std::invalid_argument naming the text otherwise.
 ScenarioKind ScenarioKindFromString(const std::string& text);
 
-/// The object's rest outline: a width_mm x height_mm rectangle, centred
-/// horizontally; push: centred in the image, hang: its top edge at
-/// hang.top_margin_mm below the image's top.
-struct ObjectSpec {
-  double width_mm = 100.0;
-  double height_mm = 64.0;
-  /// A concave outline: both long (vertical) sides are cut in by a trapezoidal
-  /// notch this deep between 35 % and 65 % of the height. 0: a rectangle.
-  double waist_mm = 0.0;
+/// The object's outline. Every shape is cut from a width_mm x height_mm
+/// rectangle; its sides are named as the push sees them before the object is
+/// turned: near (top, small y, where the finger comes in), far (bottom, where
+/// the pencil stands), left, right.
+enum class ObjectShape {
+  kRectangle,  ///< the rectangle itself
+  kWaist,      ///< both left and right sides cut in by a trapezoid (waist_mm)
+  kRounded,    ///< every corner rounded with corner_radius_mm
+  kNotched,    ///< a rectangular notch cut into one side (notch)
+  kLShape,     ///< a rectangle with one corner block removed (cutout)
+};
+std::string ToString(ObjectShape shape);
+/// "rectangle", "waist", "rounded", "notched" or "l_shape"; throws
+/// std::invalid_argument naming the text otherwise.
+ObjectShape ObjectShapeFromString(const std::string& text);
+
+enum class ObjectSide { kNear, kFar, kLeft, kRight };
+std::string ToString(ObjectSide side);
+ObjectSide ObjectSideFromString(const std::string& text);
+
+enum class ObjectCorner { kNearLeft, kNearRight, kFarLeft, kFarRight };
+std::string ToString(ObjectCorner corner);
+ObjectCorner ObjectCornerFromString(const std::string& text);
+
+/// A rectangular notch cut into one side (shape notched). Its middle lies
+/// position_fraction along the side (near and far sides: from the left end;
+/// left and right sides: from the near end); width_mm along the side,
+/// depth_mm into the object.
+struct NotchSpec {
+  ObjectSide side = ObjectSide::kFar;
+  double position_fraction = 0.5;
+  double width_mm = 12.0;
+  double depth_mm = 8.0;
 };
 
-/// The push: a finger disc comes in from the near (top, small y) side, holds,
-/// retracts; a pencil disc stands still against the far (bottom) side.
+/// The block removed from one corner (shape l_shape): width_mm along the
+/// near/far sides, height_mm along the left/right sides.
+struct CutoutSpec {
+  ObjectCorner corner = ObjectCorner::kFarRight;
+  double width_mm = 30.0;
+  double height_mm = 20.0;
+};
+
+/// The object's rest outline, cut from a width_mm x height_mm rectangle that
+/// is centred horizontally; push: centred in the image, hang: its top edge at
+/// hang.top_margin_mm below the image's top. push: the whole outline is then
+/// turned by rotation_deg about the rectangle's centre.
+struct ObjectSpec {
+  /// Read from the file, or waist when the file leaves it out and gives a
+  /// waist_mm > 0 (files written before shapes had names), else rectangle.
+  ObjectShape shape = ObjectShape::kRectangle;
+  double width_mm = 100.0;
+  double height_mm = 64.0;
+  /// Shape waist: both left and right sides are cut in by a trapezoidal
+  /// notch this deep between 35 % and 65 % of the height. 0 otherwise.
+  double waist_mm = 0.0;
+  /// Shape rounded only (a file that names shape rounded without it gets 8).
+  std::optional<double> corner_radius_mm;
+  /// Shape notched only (defaults as NotchSpec when the file leaves it out).
+  std::optional<NotchSpec> notch;
+  /// Shape l_shape only (defaults as CutoutSpec when the file leaves it out).
+  std::optional<CutoutSpec> cutout;
+  /// Push only: the outline, finger and pencil turn by this angle about the
+  /// rectangle's centre, clockwise on screen (image axes, y down), so the
+  /// finger comes in along the turned near side's inward normal. [-180, 180].
+  double rotation_deg = 0.0;
+};
+
+/// The push: a finger disc comes in from the near (top, small y) side along
+/// its inward normal, holds, retracts; a pencil disc stands still against the
+/// far (bottom) side. Both are placed against the actual outline: the finger
+/// starts start_gap_mm from where, moving in, it would first touch the
+/// outline, and the pencil stands pencil_gap_mm from where, moving up, it
+/// would first touch it (an L-shape's step, a notch's floor). With
+/// object.rotation_deg everything turns with the object.
 struct PushSpec {
   double finger_radius_mm = 3.5;
-  /// Where the finger meets the near side: a fraction of its length from the
-  /// left end, in [0, 1]; position_mm (from the left end, in [0, width_mm])
-  /// overrides it when set.
+  /// Where the finger meets the near side: a fraction of the object's width
+  /// from its left end, in [0, 1]; position_mm (from the left end, in
+  /// [0, width_mm]) overrides it when set.
   double position_fraction = 0.5;
   std::optional<double> position_mm;
-  /// How far the finger's leading point goes past the rest near side, > 0.
+  /// How far the finger's leading point goes past where it first touches the
+  /// rest outline, > 0.
   double depth_mm = 10.0;
-  /// Gap between the finger and the near side at frame 0, >= 0.
+  /// Gap between the finger and the outline at frame 0, >= 0.
   double start_gap_mm = 4.0;
   /// Timeline: still for delay_s, moving in over approach_s, holding for
   /// hold_s, moving back to the start over retract_s, then still. Moves follow
@@ -65,9 +129,10 @@ struct PushSpec {
   double hold_s = 2.0;
   double retract_s = 3.0;
   double pencil_radius_mm = 2.25;
-  /// Pencil position along the far side, fraction from its left end, [0, 1].
+  /// Pencil position along the far side, fraction of the width from its left
+  /// end, [0, 1].
   double pencil_position_fraction = 0.5;
-  /// Gap between the pencil and the far side at rest, >= 0.
+  /// Gap between the pencil and the outline at rest, >= 0.
   double pencil_gap_mm = 0.0;
 };
 
@@ -81,6 +146,8 @@ struct HangSpec {
 
 /// The base (elastic) material of the truth model.
 struct MaterialSpec {
+  /// neo_hookean (the default) or hencky (logarithmic strain, hencky.h).
+  MaterialLaw law = MaterialLaw::kNeoHookean;
   double youngs_modulus_pa = 30e3;
   double poisson_ratio = 0.3;
   double thickness_mm = 20.0;
@@ -220,11 +287,12 @@ std::string ScenarioToYaml(const Scenario& scenario);
 
 // ---- Geometry in pixels and the truth model's inputs -------------------
 
-/// The object's rest bounding rectangle, px (integer-aligned).
+/// The rectangle the object's shape is cut from, px (integer-aligned), before
+/// object.rotation_deg turns it about its centre.
 RectPx ObjectRectPx(const Scenario& scenario);
 
-/// The rest outline, px, clockwise on screen; a rectangle, or the notched
-/// strip when object.waist_mm > 0.
+/// The rest outline, px, clockwise on screen: the object's shape cut from
+/// ObjectRectPx, turned by object.rotation_deg about the rectangle's centre.
 std::vector<Vec2> RestPolygonPx(const Scenario& scenario);
 
 /// Obstacle discs per frame, px: push: {finger, pencil}; hang: none.

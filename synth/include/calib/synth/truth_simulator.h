@@ -1,6 +1,7 @@
 #pragma once
 // The truth model of synthetic recordings: a 2D continuum finite-element model
-// (linear triangles, compressible neo-Hookean, plane stress with a thickness),
+// (linear triangles, compressible neo-Hookean or Hencky, plane stress with a
+// thickness),
 // deliberately NOT the calibrated mass-spring model, so that a calibration
 // tested on its recordings cannot be trivially perfect.
 //
@@ -14,7 +15,8 @@
 // (no node inside a disc after any step). Quasi-static when inertia is off.
 //
 // Methods (details in src/truth_system.h):
-//  - elements: linear triangles, neo_hookean.h, per-element PSD projection;
+//  - elements: linear triangles, neo_hookean.h or hencky.h (material_law.h),
+//    per-element PSD projection;
 //  - contact: an IPC log barrier on each node's gap to each disc, with a
 //    line search that rejects any step through a disc, so gaps stay > 0; the
 //    reported contact force is the barrier's (+ disc friction) force, which
@@ -29,6 +31,7 @@
 
 #include "calib/core/mesh.h"
 #include "calib/core/types.h"
+#include "calib/synth/material_law.h"
 
 #include <limits>
 #include <string>
@@ -45,6 +48,9 @@ struct StiffnessRegion {
 
 /// The material, with the optional effects the calibrated model lacks.
 struct TruthMaterial {
+  /// The hyperelastic law; both take E and nu the same way (PlaneStressLame)
+  /// and agree at small strains.
+  MaterialLaw law = MaterialLaw::kNeoHookean;
   double youngs_modulus_pa = 30e3;
   double poisson_ratio = 0.3;
   double thickness_m = 0.02;
@@ -57,7 +63,7 @@ struct TruthMaterial {
   /// Uneven stiffness, regions.
   std::vector<StiffnessRegion> stiffness_regions;
 
-  /// Strain stiffening: the neo-Hookean energy density W gains
+  /// Strain stiffening: the energy density W gains
   /// stiffening_coefficient * mu * (I1 - 2 - 2 ln J)^2, fourth order in the
   /// strain, so E and nu still describe small strains (neo_hookean.h). 0: off.
   double stiffening_coefficient = 0.0;
