@@ -31,6 +31,7 @@ struct LoopRunFlags {
   int overlays = kDefaults.overlays_per_recording;
   int equally_good_fits = kDefaults.equally_good_fits;
   double fdr = kDefaults.false_discovery_rate;
+  double min_drop = kDefaults.min_relative_drop;
   double held_out_stretch = kDefaults.held_out_stretch;
   int restarts = kDefaults.restarts;
   std::string cache_dir;
@@ -93,6 +94,11 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
                   "tried (Benjamini-Hochberg)")
       ->check(CLI::Range(0.001, 0.5))
       ->capture_default_str();
+  cmd->add_option("--min-drop", f->min_drop,
+                  "the smallest held-out drop worth an effect, as a fraction of the held-out XOR: "
+                  "the keep rule's test asks for a drop beyond it")
+      ->check(CLI::Range(0.0, 0.5))
+      ->capture_default_str();
   cmd->add_option("--held-out-stretch", f->held_out_stretch,
                   "without --holdout: the share of each training video, at its end, held out "
                   "(calibrated on the frames before)")
@@ -146,6 +152,7 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.overlays_per_recording = f.overlays;
   options.equally_good_fits = f.equally_good_fits;
   options.false_discovery_rate = f.fdr;
+  options.min_relative_drop = f.min_drop;
   options.held_out_stretch = f.held_out_stretch;
   options.restarts = f.restarts;
   options.write_html = !f.no_html;

@@ -124,16 +124,12 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
   v.after = candidate.XorSum(recs_, false);
   const std::vector<std::vector<double>> old_errors = current.HeldOutFrameErrors(recs_);
   const std::vector<std::vector<double>> new_errors = candidate.HeldOutFrameErrors(recs_);
-  std::vector<std::vector<double>> differences(old_errors.size());
-  for (size_t h = 0; h < old_errors.size(); ++h) {
-    for (size_t f = 0; f < old_errors[h].size() && f < new_errors[h].size(); ++f) {
-      differences[h].push_back(old_errors[h][f] - new_errors[h][f]);
-    }
-  }
+  // Both simulate every held-out frame (the candidate is AllOk, the
+  // reference always is): the frames pair up.
   PairedTestOptions test;
   test.resamples = o_.test_resamples;
   test.seed = seed;
-  v.test = PairedBlockTest(differences, test);
+  v.test = PairedDropTest(old_errors, new_errors, o_.min_relative_drop, test);
   // The XOR sum also falls when a mesh leaves an object it overlaps poorly
   // (less than half): the held-out mean IoU must not fall.
   double iou_before = 0.0, iou_after = 0.0;
@@ -154,10 +150,11 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
   for (int b : v.test.block_lengths) blocks.push_back(fmt::format("{}", b));
   v.reason = fmt::format(
       "held-out XOR sum {:.0f} -> {:.0f} ({:+.1f}%, 95% interval of the drop {:.0f} to {:.0f}); "
-      "paired block sign-flip test over {} frames in {} blocks of {} frames: p = {:.4f}; "
+      "paired block sign-flip test of a drop beyond {:g}% over {} frames in {} blocks of {} "
+      "frames: p = {:.4f}; "
       "training XOR sum {:.0f} -> {:.0f}{}; held-out mean IoU {:.5f} -> {:.5f}{}",
       v.before, v.after, percent(v.before, v.after), v.test.total_low, v.test.total_high,
-      v.test.frames, v.test.blocks, fmt::join(blocks, "/"), v.test.p_value, train_before,
+      100.0 * o_.min_relative_drop, v.test.frames, v.test.blocks, fmt::join(blocks, "/"), v.test.p_value, train_before,
       train_after, train_ok ? "" : " (rose: the fit got worse where it was fitted)", iou_before,
       iou_after, iou_ok ? "" : " (fell: the XOR drop comes from a mesh that overlaps the object less)");
   return v;

@@ -52,6 +52,9 @@ bool LoopOptions::IsValid(std::string* error) const {
   if (!(min_confidence >= 0.0 && min_confidence <= 1.0)) {
     return fail(fmt::format("loop: --min-confidence = {}: must be in [0, 1]", min_confidence));
   }
+  if (!(min_relative_drop >= 0.0 && min_relative_drop < 1.0)) {
+    return fail(fmt::format("loop: --min-drop = {}: must be in [0, 1)", min_relative_drop));
+  }
   if (!(false_discovery_rate > 0.0 && false_discovery_rate < 1.0)) {
     return fail(fmt::format("loop: --fdr = {}: must be in (0, 1)", false_discovery_rate));
   }
@@ -290,8 +293,9 @@ LoopResult Loop::Run() {
   calibrator_ = std::make_unique<StageCalibrator>(o_, recs_, scales_, *criterion_, *store_, threads_, log_);
   report_.selection_rule = fmt::format(
       "An effect is kept when, recalibrated with it on the training {}, it lowers the XOR of the "
-      "held-out {} frame by frame more than chance explains: a one-sided paired test of the "
-      "per-frame differences (old model minus new), by random sign flips of blocks of "
+      "held-out {} frame by frame by more than {:g}% of their error beyond what chance "
+      "explains: a one-sided paired test of the per-frame differences (old model minus new, "
+      "less that share of the old error), by random sign flips of blocks of "
       "consecutive frames (blocks twice the automatic length of Politis and White, at least 10 "
       "per recording; {} sign sets), corrected for every hypothesis the loop has tried by the "
       "Benjamini-Hochberg procedure at a false-discovery rate of {:g}%. The training XOR sum must "
@@ -304,6 +308,7 @@ LoopResult Loop::Run() {
       o_.holdout.empty()
           ? fmt::format("stretch of each training video (its last {:.0f}%)", 100.0 * o_.held_out_stretch)
           : std::string("recordings"),
+      100.0 * o_.min_relative_drop,
       o_.test_resamples, 100.0 * o_.false_discovery_rate, o_.tries_per_round, o_.min_confidence,
       o_.max_effects);
   report_.notes.push_back(fmt::format(

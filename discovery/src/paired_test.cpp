@@ -141,6 +141,38 @@ PairedTestResult PairedBlockTest(const std::vector<std::vector<double>>& differe
   return result;
 }
 
+PairedTestResult PairedDropTest(const std::vector<std::vector<double>>& before,
+                                const std::vector<std::vector<double>>& after,
+                                double min_relative_drop, const PairedTestOptions& options) {
+  if (!(min_relative_drop >= 0.0 && min_relative_drop < 1.0)) {
+    throw std::invalid_argument(fmt::format(
+        "paired drop test: smallest relevant drop {}: must be in [0, 1)", min_relative_drop));
+  }
+  if (before.size() != after.size()) {
+    throw std::invalid_argument(fmt::format(
+        "paired drop test: {} recordings before, {} after", before.size(), after.size()));
+  }
+  std::vector<std::vector<double>> differences(before.size());
+  double margin = 0.0;
+  for (size_t r = 0; r < before.size(); ++r) {
+    if (before[r].size() != after[r].size()) {
+      throw std::invalid_argument(fmt::format("paired drop test: recording {}: {} frames before, {} after",
+                                              r, before[r].size(), after[r].size()));
+    }
+    differences[r].reserve(before[r].size());
+    for (size_t f = 0; f < before[r].size(); ++f) {
+      const double share = min_relative_drop * before[r][f];
+      differences[r].push_back(before[r][f] - after[r][f] - share);
+      margin += share;
+    }
+  }
+  PairedTestResult result = PairedBlockTest(differences, options);
+  result.total += margin;
+  result.total_low += margin;
+  result.total_high += margin;
+  return result;
+}
+
 std::vector<bool> BenjaminiHochberg(const std::vector<double>& p_values, double q) {
   if (!(q > 0.0 && q < 1.0)) {
     throw std::invalid_argument(

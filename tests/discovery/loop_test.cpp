@@ -348,6 +348,9 @@ TEST(Loop, BadOptionsAreNamed) {
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
   o.held_out_stretch = 1.0;
   EXPECT_NE(message(o).find("--held-out-stretch = 1"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.min_relative_drop = -0.1;
+  EXPECT_NE(message(o).find("--min-drop = -0.1"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "absent_recording"}, {}, "loop_bad");
   EXPECT_NE(message(o).find("absent_recording"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");

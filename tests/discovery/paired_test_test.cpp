@@ -2,7 +2,8 @@
 // cases, the automatic block length (short for white noise, long for a
 // slowly varying series), the paired block sign-flip test's size under the
 // null (white and autocorrelated differences), its power, determinism, and
-// one test per kind of bad input naming the culprit.
+// one test per kind of bad input naming the culprit; the keep rule's drop
+// test beyond a relevant share.
 
 #include "calib/discovery/paired_test.h"
 
@@ -113,6 +114,42 @@ TEST(PairedBlockTest, FindsAClearDropAndBracketsIt) {
   std::vector<double> worse = d;
   for (double& v : worse) v = -v;
   EXPECT_GE(PairedBlockTest({worse}, options).p_value, 0.99);
+}
+
+// The keep rule's form: a consistent drop too small to matter (0.5 % of
+// the error on every frame) is significant as a plain drop but not beyond a
+// relevant share of 2 %; a 30 % drop is significant beyond it; the drop and
+// its interval are reported as drops of the error, the share added back.
+TEST(PairedDropTest, AsksForADropBeyondTheRelevantShare) {
+  PairedTestOptions options;
+  options.resamples = 999;
+  std::vector<double> before(330), slightly(330), much(330);
+  const std::vector<double> noise = Ar1(330, 0.5, 0.0, 3);
+  for (int f = 0; f < 330; ++f) {
+    before[f] = 1000.0 + 50.0 * std::sin(0.05 * f);
+    slightly[f] = 0.995 * before[f];
+    much[f] = 0.7 * before[f] + 5.0 * noise[f];
+  }
+  EXPECT_LE(PairedDropTest({before}, {slightly}, 0.0, options).p_value, 0.01);
+  EXPECT_GE(PairedDropTest({before}, {slightly}, 0.02, options).p_value, 0.99);
+  const PairedTestResult r = PairedDropTest({before}, {much}, 0.02, options);
+  EXPECT_LE(r.p_value, 0.01);
+  double drop = 0.0;
+  for (int f = 0; f < 330; ++f) drop += before[f] - much[f];
+  EXPECT_NEAR(r.total, drop, 1e-6 * drop);
+  EXPECT_LT(r.total_low, drop);
+  EXPECT_GT(r.total_high, drop);
+}
+
+TEST(PairedDropTest, BadInputIsNamed) {
+  EXPECT_NE(MessageOf([] { PairedDropTest({{1.0}}, {{1.0}}, 1.5, {}); }).find("1.5"),
+            std::string::npos);
+  EXPECT_NE(MessageOf([] { PairedDropTest({{1.0}, {2.0}}, {{1.0}}, 0.02, {}); })
+                .find("2 recordings before, 1 after"),
+            std::string::npos);
+  EXPECT_NE(MessageOf([] { PairedDropTest({{1.0, 2.0}}, {{1.0}}, 0.02, {}); })
+                .find("recording 0: 2 frames before, 1 after"),
+            std::string::npos);
 }
 
 TEST(PairedBlockTest, IsDeterministicAndDrawsWithinEachRecording) {

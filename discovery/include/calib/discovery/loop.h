@@ -68,6 +68,11 @@ struct LoopOptions {
   /// after the Benjamini-Hochberg correction over every hypothesis the loop
   /// has tried, at this false-discovery rate.
   double false_discovery_rate = 0.05;
+  /// The smallest held-out drop worth a model term, as a fraction of the
+  /// reference's held-out XOR: the test's null hypothesis is "the effect
+  /// lowers the held-out error by at most this much", so a term that buys a
+  /// consistent but negligible drop (a few pixels a frame) is not kept.
+  double min_relative_drop = 0.02;
   /// Random sign sets of the test (its smallest p-value is 1 / (n + 1)).
   int test_resamples = 9999;
   /// With no held-out recording, the training videos' frames from this

@@ -64,6 +64,17 @@ struct PairedTestResult {
 PairedTestResult PairedBlockTest(const std::vector<std::vector<double>>& differences,
                                  const PairedTestOptions& options);
 
+/// The keep rule's test of a model's per-frame errors `after[r][f]` against
+/// a reference's `before[r][f]` (same shapes): H0 "the new model lowers the
+/// summed error by at most `min_relative_drop` of the reference's". Each
+/// frame's difference before - after less that share of `before` goes to
+/// PairedBlockTest; `total` and its interval are the drop itself (the share
+/// added back). Throws std::invalid_argument for recordings or frames that
+/// do not pair up, a share outside [0, 1) and PairedBlockTest's errors.
+PairedTestResult PairedDropTest(const std::vector<std::vector<double>>& before,
+                                const std::vector<std::vector<double>>& after,
+                                double min_relative_drop, const PairedTestOptions& options);
+
 /// Benjamini-Hochberg step-up at false-discovery rate `q` over `p_values`:
 /// rejected[i] is true for the hypotheses it rejects (p_(i) <= k q / m for
 /// the largest such rank k). Throws std::invalid_argument for q outside
