@@ -70,7 +70,9 @@ void Finish(CommandSettings* settings, const std::string& integrator, const std:
 }
 
 void PrintResult(const calib::EvaluationResult& result) {
-  fmt::print("score (XOR pixels summed over frames): {}\n", result.xor_sum);
+  // Exactly (the shortest text that reads back to the same double), as the
+  // results store holds a job's scores.
+  fmt::print("score (XOR pixel area summed over frames): {}\n", result.xor_sum);
   if (result.ok()) {
     fmt::print("mean IoU: {:.4f} over {} frames\n", result.mean_iou, result.num_frames);
   } else {

@@ -30,6 +30,9 @@ struct LoopRunFlags {
   double min_confidence = kDefaults.min_confidence;
   int overlays = kDefaults.overlays_per_recording;
   int equally_good_fits = kDefaults.equally_good_fits;
+  double fdr = kDefaults.false_discovery_rate;
+  double min_drop = kDefaults.min_relative_drop;
+  double held_out_stretch = kDefaults.held_out_stretch;
   int restarts = kDefaults.restarts;
   std::string cache_dir;
   bool no_cache = false;
@@ -86,10 +89,25 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
                   "hypotheses below this confidence are not tried")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  cmd->add_option("--fdr", f->fdr,
+                  "false-discovery rate of the keep rule's test, corrected for every hypothesis "
+                  "tried (Benjamini-Hochberg)")
+      ->check(CLI::Range(0.001, 0.5))
+      ->capture_default_str();
+  cmd->add_option("--min-drop", f->min_drop,
+                  "the smallest held-out drop worth an effect, as a fraction of the held-out XOR: "
+                  "the keep rule's test asks for a drop beyond it")
+      ->check(CLI::Range(0.0, 0.5))
+      ->capture_default_str();
+  cmd->add_option("--held-out-stretch", f->held_out_stretch,
+                  "without --holdout: the share of each training video, at its end, held out "
+                  "(calibrated on the frames before)")
+      ->check(CLI::Range(0.05, 0.95))
+      ->capture_default_str();
   cmd->add_option("--equally-good-fits", f->equally_good_fits,
-                  "fits of a model as good as its best on the training recordings (within "
-                  "max(segmentation noise, 1%)) re-scored on the held-out recordings; an "
-                  "effect's drop must also pass between their medians (0: the best fits only)")
+                  "report only: fits of a model as good as its best on the training recordings "
+                  "(within max(segmentation noise, 1%)) re-scored on the held-out recordings "
+                  "(0: none)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--restarts", f->restarts,
@@ -133,6 +151,9 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.min_confidence = f.min_confidence;
   options.overlays_per_recording = f.overlays;
   options.equally_good_fits = f.equally_good_fits;
+  options.false_discovery_rate = f.fdr;
+  options.min_relative_drop = f.min_drop;
+  options.held_out_stretch = f.held_out_stretch;
   options.restarts = f.restarts;
   options.write_html = !f.no_html;
   options.simulation.outline_contact = f.outline_contact;

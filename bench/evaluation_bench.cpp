@@ -1,6 +1,7 @@
 // Speed of the evaluation hot loop on the reference scene (see
 // reference_scene.h): one full evaluation (simulate and score all frames),
-// one substep, and one frame's scoring (rasterise + compare).
+// one substep, and one frame's scoring (rasterise + compare, by the score's
+// coverage rule and by the centre rule it replaced).
 //
 //   build/bench/calib_bench --benchmark_min_time=1
 
@@ -113,20 +114,46 @@ void BM_ForcesKernel(benchmark::State& state) {
 }
 BENCHMARK(BM_ForcesKernel)->DenseRange(0, 2)->Unit(benchmark::kMicrosecond);
 
+// One frame's scoring on the reference scene. Arguments: coverage (0 the
+// centre rule: RasterizeMesh, a bit mask, CompareMasks, the score before
+// sub-pixel coverage; 1 the score's rule: RasterizeMeshCoverage,
+// CompareCoverage) and dented (0 the rest mesh shifted off the pixel grid by
+// (1.3, -0.7) px, its sides along rows and columns; 1 the mesh the finger
+// has dented by frame 100, as evaluations see it).
 void BM_ScoreFrame(benchmark::State& state) {
   const PreparedRecording& prepared = Scene();
+  const bool coverage = state.range(0) != 0;
+  std::vector<Vec2> x = prepared.mesh.rest_positions;
+  if (state.range(1) != 0) {
+    Simulator simulator(prepared.mesh, prepared.scene, SimulationOptions{});
+    simulator.Reset(ReferenceParameters());
+    for (int f = 0; f < 100; ++f) simulator.Advance();
+    x = simulator.positions();
+  } else {
+    for (Vec2& p : x) p += Vec2(1.3, -0.7);
+  }
   Rasterizer rasterizer;
   BitMask mesh_mask(prepared.object_masks[0]);
-  std::vector<Vec2> x = prepared.mesh.rest_positions;
-  for (Vec2& p : x) p += Vec2(1.3, -0.7);
+  std::vector<PixelCoverage> boundary;
   for (auto _ : state) {
-    rasterizer.RasterizeMesh(prepared.mesh, x, mesh_mask);
-    const FrameScore score = CompareMasks(prepared.object_masks[0], mesh_mask);
+    FrameScore score;
+    if (coverage) {
+      rasterizer.RasterizeMeshCoverage(prepared.mesh, x, mesh_mask, boundary);
+      score = CompareCoverage(prepared.object_masks[0], mesh_mask, boundary);
+    } else {
+      rasterizer.RasterizeMesh(prepared.mesh, x, mesh_mask);
+      score = CompareMasks(prepared.object_masks[0], mesh_mask);
+    }
     benchmark::DoNotOptimize(score.xor_px);
   }
+  state.SetLabel(coverage ? "coverage" : "centre rule");
   state.counters["pixels"] = mesh_mask.width() * mesh_mask.height();
+  state.counters["partly_covered"] = static_cast<double>(boundary.size());
 }
-BENCHMARK(BM_ScoreFrame)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ScoreFrame)
+    ->ArgNames({"coverage", "dented"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace calib::bench

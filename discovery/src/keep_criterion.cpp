@@ -6,10 +6,12 @@
 #include "loop_stages.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace calib {
@@ -32,14 +34,6 @@ double SegmentationNoisePx(const std::vector<BitMask>& masks) {
   double sum = 0.0;
   for (double v : flicker) sum += v;
   return sum / static_cast<double>(flicker.size());
-}
-
-double IouTolerance(double margin_px, const std::vector<const std::vector<BitMask>*>& held_out_masks) {
-  double object_px = 0.0;
-  for (const std::vector<BitMask>* masks : held_out_masks) {
-    for (const BitMask& m : *masks) object_px += static_cast<double>(m.Count());
-  }
-  return object_px > 0.0 ? std::max(margin_px, 0.0) / object_px : 0.0;
 }
 
 std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationRecord>& evaluations,
@@ -72,168 +66,97 @@ std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationR
 
 namespace loop_detail {
 
-int64_t Fit::XorSum(const std::vector<LoopRecording>& recs, bool train) const {
-  int64_t s = 0;
+double Fit::XorSum(const std::vector<LoopRecording>& recs, bool train) const {
+  double s = 0.0;
   for (size_t r = 0; r < recs.size(); ++r) {
-    if (recs[r].train == train) s += results[r].ok() ? results[r].xor_sum : INT64_MAX / 64;
+    if (recs[r].train != train) continue;
+    if (!results[r].ok()) return std::numeric_limits<double>::infinity();
+    if (recs[r].first_compared_frame == 0) {
+      s += static_cast<double>(results[r].xor_sum);
+    } else {
+      const std::vector<FrameScore>& frames = results[r].frames;
+      for (size_t f = static_cast<size_t>(recs[r].first_compared_frame); f < frames.size(); ++f) {
+        s += static_cast<double>(frames[f].xor_px);
+      }
+    }
   }
   return s;
+}
+
+std::vector<std::vector<double>> Fit::HeldOutFrameErrors(const std::vector<LoopRecording>& recs) const {
+  std::vector<std::vector<double>> out;
+  for (size_t r = 0; r < recs.size(); ++r) {
+    if (recs[r].train) continue;
+    std::vector<double>& errors = out.emplace_back();
+    const std::vector<FrameScore>& frames = results[r].frames;
+    for (size_t f = static_cast<size_t>(recs[r].first_compared_frame); f < frames.size(); ++f) {
+      errors.push_back(static_cast<double>(frames[f].xor_px));
+    }
+  }
+  return out;
 }
 
 bool Fit::AllOk() const {
   return std::all_of(results.begin(), results.end(), [](const EvaluationResult& e) { return e.ok(); });
 }
 
-bool KeepCriterion::HasHoldout() const {
-  return std::any_of(recs_.begin(), recs_.end(), [](const LoopRecording& r) { return !r.train; });
-}
-
-double KeepCriterion::NoiseBudget(bool train) const {
+double KeepCriterion::TrainingNoise() const {
   double b = 0.0;
   for (const LoopRecording& r : recs_) {
-    if (r.train == train) b += r.noise_px * r.prepared->scene.num_frames;
+    if (r.train) b += r.noise_px * r.prepared->scene.num_frames;
   }
   return b;
 }
 
-double KeepCriterion::Margin(bool train, int extra_parameters, double before) const {
-  return std::max(o_.noise_factor * (1 + extra_parameters) * NoiseBudget(train),
-                  o_.min_relative_gain * before);
-}
-
-std::vector<const std::vector<BitMask>*> KeepCriterion::HeldOutMasks() const {
-  std::vector<const std::vector<BitMask>*> out;
-  for (const LoopRecording& r : recs_) {
-    if (!r.train) out.push_back(&r.prepared->object_masks);
-  }
-  return out;
-}
-
-KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* ablation, const Fit& candidate,
-                          int extra_parameters) const {
-  // The reference on the training recordings: the previous fit, or the
-  // ablation where it is better there.
+KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* ablation,
+                                            const Fit& candidate, uint64_t seed) const {
+  // The reference: the previous fit, or the ablation where it is better on
+  // the training recordings.
   const Fit& current = ablation != nullptr ? *ablation : previous;
   Verdict v;
-  const int64_t train_before = current.XorSum(recs_, true);
-  const int64_t train_after = candidate.XorSum(recs_, true);
   if (!candidate.AllOk()) {
-    v.criterion = "every recording simulates";
     v.reason = "the calibrated model fails to simulate a recording";
     return v;
   }
-  if (HasHoldout()) {
-    // A model's held-out error is known only up to the spread of its
-    // equally good fits, and a search that converged tightly has less
-    // spread than one that did not: the effect must lower the held-out error
-    // both at the best training fits and at the median over the equally
-    // good fits (its best training fit where they were not measured). The
-    // ablation, one more fit of the previous model, is the reference where
-    // it does better on training.
-    auto typical = [&](const Fit& fit) {
-      return fit.equally_good.fits > 0 ? static_cast<double>(fit.equally_good.holdout_xor_median)
-                                       : static_cast<double>(fit.XorSum(recs_, false));
-    };
-    const double best_before = static_cast<double>(current.XorSum(recs_, false));
-    const double best_after = static_cast<double>(candidate.XorSum(recs_, false));
-    double typical_before = typical(previous);
-    if (ablation != nullptr) typical_before = std::min(typical_before, best_before);
-    const double typical_after = typical(candidate);
-    const double noise = NoiseBudget(false);
-    // Neither model's held-out error can be read closer than a nudge of its
-    // values moves it.
-    const double sensitivity =
-        std::max(previous.holdout_sensitivity_px, candidate.holdout_sensitivity_px);
-    auto margin = [&](double before) {
-      return std::max(Margin(false, extra_parameters, before), sensitivity);
-    };
-    // The deciding comparison: the one whose drop exceeds its margin by less.
-    const double best_slack = best_before - best_after - margin(best_before);
-    const double typical_slack = typical_before - typical_after - margin(typical_before);
-    const bool decided_at_best = best_slack <= typical_slack;
-    const double before = decided_at_best ? best_before : typical_before;
-    const double after = decided_at_best ? best_after : typical_after;
-    v.gain = before - after;
-    v.margin = margin(before);
-    v.criterion = "held-out XOR sum";
-    const bool train_ok = train_after <= train_before;
-    // The XOR sum also falls when the mesh leaves an object it overlaps
-    // poorly (less than half): the held-out mean IoU must not fall.
-    double iou_before = 0.0, iou_after = 0.0;
-    int held = 0;
-    for (size_t r = 0; r < recs_.size(); ++r) {
-      if (recs_[r].train) continue;
-      iou_before += current.results[r].mean_iou;
-      iou_after += candidate.results[r].mean_iou;
-      ++held;
-    }
-    iou_before /= std::max(held, 1);
-    iou_after /= std::max(held, 1);
-    // A fall the XOR margin calls insignificant is no fall.
-    const double iou_tolerance = IouTolerance(v.margin, HeldOutMasks());
-    const bool iou_ok = iou_after >= iou_before - iou_tolerance;
-    v.pass = v.gain > v.margin && train_ok && iou_ok;
-    auto spread = [](const EquallyGoodFits& g) {
-      return g.fits == 0 ? std::string("not measured")
-                         : fmt::format("{} fits, {} to {}", g.fits, g.holdout_xor_min, g.holdout_xor_max);
-    };
-    auto percent = [](double b, double a) { return b > 0 ? 100.0 * (a - b) / b : 0.0; };
-    v.reason = fmt::format(
-        "held-out XOR sum at the best training fits {:.0f} -> {:.0f} ({:+.1f}%), median over the "
-        "equally good fits {:.0f} -> {:.0f} ({:+.1f}%) (training XOR within {:.0f} px of the best; "
-        "before: {}; after: {}): the deciding drop ({}), {:.0f} px, {} the margin {:.0f} px = max({} x "
-        "(1 + {} extra parameters) x segmentation noise {:.0f} px, {:.0f}% of {:.0f}, what a 0.1% "
-        "nudge of either model's values moves: {:.0f} px); training "
-        "XOR sum {} -> {}{}; held-out mean IoU {:.5f} -> {:.5f}{}",
-        best_before, best_after, percent(best_before, best_after), typical_before, typical_after,
-        percent(typical_before, typical_after), candidate.equally_good.training_tolerance_px,
-        spread(previous.equally_good), spread(candidate.equally_good),
-        decided_at_best ? "at the best fits" : "of the medians", v.gain,
-        v.gain > v.margin ? "exceeds" : "does not exceed", v.margin, o_.noise_factor,
-        extra_parameters, noise, 100.0 * o_.min_relative_gain, before, sensitivity, train_before,
-        train_after,
-        train_ok ? "" : " (rose: the fit got worse where it was fitted)", iou_before, iou_after,
-        iou_after >= iou_before ? ""
-        : iou_ok ? fmt::format(" (fell by less than the margin's {:.5f})", iou_tolerance)
-                 : fmt::format(" (fell by more than the margin's {:.5f}: the XOR drop comes from "
-                               "a mesh that overlaps the object less)",
-                               iou_tolerance));
-    return v;
+  const double train_before = current.XorSum(recs_, true);
+  const double train_after = candidate.XorSum(recs_, true);
+  v.before = current.XorSum(recs_, false);
+  v.after = candidate.XorSum(recs_, false);
+  const std::vector<std::vector<double>> old_errors = current.HeldOutFrameErrors(recs_);
+  const std::vector<std::vector<double>> new_errors = candidate.HeldOutFrameErrors(recs_);
+  // Both simulate every held-out frame (the candidate is AllOk, the
+  // reference always is): the frames pair up.
+  PairedTestOptions test;
+  test.resamples = o_.test_resamples;
+  test.seed = seed;
+  v.test = PairedDropTest(old_errors, new_errors, o_.min_relative_drop, test);
+  // The XOR sum also falls when a mesh leaves an object it overlaps poorly
+  // (less than half): the held-out mean IoU must not fall.
+  double iou_before = 0.0, iou_after = 0.0;
+  int held = 0;
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    if (recs_[r].train) continue;
+    iou_before += current.results[r].mean_iou;
+    iou_after += candidate.results[r].mean_iou;
+    ++held;
   }
-  // No held-out recording: BIC on the per-frame errors of the training
-  // recordings (Gaussian per-frame XOR), plus the noise margin.
-  auto sse = [&](const Fit& fit, int64_t* n) {
-    double s = 0.0;
-    *n = 0;
-    for (size_t r = 0; r < recs_.size(); ++r) {
-      if (!recs_[r].train) continue;
-      for (const FrameScore& f : fit.results[r].frames) {
-        s += static_cast<double>(f.xor_px) * f.xor_px;
-        ++*n;
-      }
-    }
-    return s;
-  };
-  int64_t n = 0;
-  const double sse_before = sse(current, &n);
-  const double sse_after = sse(candidate, &n);
-  SearchScales scales = scales_;
-  scales.reference = current.values;
-  const int k_before = SearchSpace(StageParameterSettings(current.effects, scales)).dimension();
-  const int k_after = k_before + extra_parameters;
-  auto bic = [&](double s, int k) {
-    return n * std::log(std::max(s, 1.0) / std::max<int64_t>(n, 1)) + k * std::log(std::max<int64_t>(n, 2));
-  };
-  const double b0 = bic(sse_before, k_before), b1 = bic(sse_after, k_after);
-  v.gain = static_cast<double>(train_before - train_after);
-  v.margin = Margin(true, extra_parameters, static_cast<double>(train_before));
-  v.criterion = "BIC of per-frame training XOR";
-  v.pass = b1 < b0 && v.gain > v.margin;
+  iou_before /= std::max(held, 1);
+  iou_after /= std::max(held, 1);
+  const bool train_ok = train_after <= train_before;
+  const bool iou_ok = iou_after >= iou_before;
+  v.eligible = train_ok && iou_ok;
+  auto percent = [](double b, double a) { return b > 0 ? 100.0 * (a - b) / b : 0.0; };
+  std::vector<std::string> blocks;
+  for (int b : v.test.block_lengths) blocks.push_back(fmt::format("{}", b));
   v.reason = fmt::format(
-      "no held-out recording: BIC {:.1f} -> {:.1f} over {} frames ({} -> {} parameters); training "
-      "XOR sum {} -> {}, drop {:.0f} px {} the margin {:.0f} px",
-      b0, b1, n, k_before, k_after, train_before, train_after, v.gain,
-      v.gain > v.margin ? "exceeds" : "does not exceed", v.margin);
+      "held-out XOR sum {:.0f} -> {:.0f} ({:+.1f}%, 95% interval of the drop {:.0f} to {:.0f}); "
+      "paired block sign-flip test of a drop beyond {:g}% over {} frames in {} blocks of {} "
+      "frames: p = {:.4f}; "
+      "training XOR sum {:.0f} -> {:.0f}{}; held-out mean IoU {:.5f} -> {:.5f}{}",
+      v.before, v.after, percent(v.before, v.after), v.test.total_low, v.test.total_high,
+      100.0 * o_.min_relative_drop, v.test.frames, v.test.blocks, fmt::join(blocks, "/"), v.test.p_value, train_before,
+      train_after, train_ok ? "" : " (rose: the fit got worse where it was fitted)", iou_before,
+      iou_after, iou_ok ? "" : " (fell: the XOR drop comes from a mesh that overlaps the object less)");
   return v;
 }
 

@@ -3,6 +3,8 @@
 #include "calib/discovery/loop.h"
 
 #include "calib/core/model_definition.h"
+#include "calib/discovery/confusions.h"
+#include "calib/discovery/paired_test.h"
 #include "calib/discovery/report_html.h"
 #include "calib/discovery/report_overlays.h"
 #include "calib/jobs/batch_evaluator.h"
@@ -50,11 +52,17 @@ bool LoopOptions::IsValid(std::string* error) const {
   if (!(min_confidence >= 0.0 && min_confidence <= 1.0)) {
     return fail(fmt::format("loop: --min-confidence = {}: must be in [0, 1]", min_confidence));
   }
-  if (!(noise_factor >= 0.0) || !std::isfinite(noise_factor)) {
-    return fail(fmt::format("loop: noise factor = {}: must be finite and >= 0", noise_factor));
+  if (!(min_relative_drop >= 0.0 && min_relative_drop < 1.0)) {
+    return fail(fmt::format("loop: --min-drop = {}: must be in [0, 1)", min_relative_drop));
   }
-  if (!(min_relative_gain >= 0.0 && min_relative_gain < 1.0)) {
-    return fail(fmt::format("loop: minimum relative gain = {}: must be in [0, 1)", min_relative_gain));
+  if (!(false_discovery_rate > 0.0 && false_discovery_rate < 1.0)) {
+    return fail(fmt::format("loop: --fdr = {}: must be in (0, 1)", false_discovery_rate));
+  }
+  if (test_resamples < 99) {
+    return fail(fmt::format("loop: test resamples = {}: must be >= 99", test_resamples));
+  }
+  if (!(held_out_stretch > 0.0 && held_out_stretch < 1.0)) {
+    return fail(fmt::format("loop: --held-out-stretch = {}: must be in (0, 1)", held_out_stretch));
   }
   if (equally_good_fits < 0) {
     return fail(fmt::format("loop: --equally-good-fits = {}: must be >= 0", equally_good_fits));
@@ -92,7 +100,7 @@ double Since(Clock::time_point start) {
 
 std::string EquallyGoodLine(const EquallyGoodFits& g) {
   if (g.fits == 0) return "";
-  return fmt::format("; {} equally good fits: held-out XOR {} to {}, median {}", g.fits,
+  return fmt::format("; {} equally good fits: held-out XOR {:.0f} to {:.0f}, median {:.0f}", g.fits,
                      g.holdout_xor_min, g.holdout_xor_max, g.holdout_xor_median);
 }
 
@@ -116,6 +124,10 @@ class Loop {
   ReportStage MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const;
   void AddResiduals(const Fit& fit);
   void AddOverlays(const Fit& fit, const std::string& stage);
+  // The confusable pairs this round met (confusions.h), judged after its
+  // keep decisions are made but before they are marked.
+  void AddConfusions(int round, const std::vector<Hypothesis>& ranked,
+                     const std::vector<size_t>& stage_index);
 
   const LoopOptions& o_;
   const LoopLog& log_;
@@ -128,16 +140,30 @@ class Loop {
   std::unique_ptr<StageCalibrator> calibrator_;
 };
 
+// The recording cut to its first `frames` frames (its scene, track and
+// masks), for calibrating on the part of a video before a held-out stretch.
+PreparedRecording FirstFrames(const PreparedRecording& full, int frames) {
+  PreparedRecording p = full;
+  p.recording.num_frames = frames;
+  for (ObstacleTrack& track : p.recording.obstacles) track.discs.resize(static_cast<size_t>(frames));
+  if (!p.recording.forces.empty()) p.recording.forces.resize(static_cast<size_t>(frames));
+  p.object_masks.resize(static_cast<size_t>(frames), p.object_masks.front());
+  p.scene.num_frames = frames;
+  p.scene.obstacle_discs.resize(static_cast<size_t>(frames) * p.scene.num_obstacles);
+  if (!p.scene.forces.empty()) p.scene.forces.resize(static_cast<size_t>(frames));
+  return p;
+}
+
 void Loop::Prepare() {
   std::set<std::string> names;
-  auto add = [&](const fs::path& path, bool train) {
+  auto add = [&](const fs::path& path, std::shared_ptr<const PreparedRecording> prepared,
+                 bool train, int first_compared_frame, const std::string& suffix) {
     LoopRecording r;
     r.path = path;
     r.train = train;
-    Log(fmt::format("preparing {} ({})", path.string(), train ? "train" : "held out"));
-    r.prepared = std::make_shared<const PreparedRecording>(
-        PrepareRecording(LoadRecording(path), o_.preparation));
-    const std::string name = RecordingDisplayName(r.prepared->recording.folder);
+    r.first_compared_frame = first_compared_frame;
+    r.prepared = std::move(prepared);
+    const std::string name = RecordingDisplayName(r.prepared->recording.folder) + suffix;
     r.name = name;
     for (int k = 2; names.count(r.name) != 0; ++k) r.name = fmt::format("{}_{}", name, k);
     names.insert(r.name);
@@ -145,8 +171,29 @@ void Loop::Prepare() {
     r.residual_facts = std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(*r.prepared));
     recs_.push_back(std::move(r));
   };
-  for (const fs::path& p : o_.train) add(p, true);
-  for (const fs::path& p : o_.holdout) add(p, false);
+  auto prepare = [&](const fs::path& path, bool train) {
+    Log(fmt::format("preparing {} ({})", path.string(), train ? "train" : "held out"));
+    return std::make_shared<const PreparedRecording>(PrepareRecording(LoadRecording(path), o_.preparation));
+  };
+  if (!o_.holdout.empty()) {
+    for (const fs::path& p : o_.train) add(p, prepare(p, true), true, 0, "");
+    for (const fs::path& p : o_.holdout) add(p, prepare(p, false), false, 0, "");
+  } else {
+    // No held-out recording: calibrate on the first frames of each training
+    // video and hold out the rest (whole videos are scored there, but only
+    // the frames from the split on are compared).
+    std::vector<std::pair<fs::path, std::shared_ptr<const PreparedRecording>>> full;
+    for (const fs::path& p : o_.train) full.emplace_back(p, prepare(p, true));
+    for (const auto& [path, prepared] : full) {
+      const int n = prepared->scene.num_frames;
+      const int split = std::clamp(static_cast<int>(std::lround(n * (1.0 - o_.held_out_stretch))), 1, n - 1);
+      add(path, std::make_shared<const PreparedRecording>(FirstFrames(*prepared, split)), true, 0, "");
+      add(path, prepared, false, split, fmt::format("_frames_{}-{}", split, n - 1));
+      report_.notes.push_back(fmt::format(
+          "no held-out recording: {} is calibrated on frames 0-{} and frames {}-{} are held out",
+          path.string(), split - 1, split, n - 1));
+    }
+  }
 
   std::vector<std::shared_ptr<const PreparedRecording>> training;
   for (const LoopRecording& r : recs_) {
@@ -173,6 +220,7 @@ ReportStage Loop::MakeStage(const Fit& fit, const std::string& tried, StageDecis
   s.evaluations = fit.evaluations;
   s.equally_good = fit.equally_good;
   s.holdout_sensitivity_px = fit.holdout_sensitivity_px;
+  s.holdout_sensitivity_parameter = fit.holdout_sensitivity_parameter;
   if (fit.restart_training_xor.size() > 1) s.restart_training_xor = fit.restart_training_xor;
   return s;
 }
@@ -187,7 +235,7 @@ void Loop::AddOverlays(const Fit& fit, const std::string& stage) {
   if (o_.overlays_per_recording == 0) return;
   const ModelDefinition model{fit.effects};
   for (size_t r = 0; r < recs_.size(); ++r) {
-    std::vector<int64_t> frame_xor;
+    std::vector<double> frame_xor;
     for (const FrameScore& f : fit.results[r].frames) frame_xor.push_back(f.xor_px);
     const int gap = std::max(1, static_cast<int>(frame_xor.size()) / 10);
     std::vector<int> frames = WorstFrames(frame_xor, o_.overlays_per_recording, gap);
@@ -205,6 +253,28 @@ void Loop::AddOverlays(const Fit& fit, const std::string& stage) {
   }
 }
 
+void Loop::AddConfusions(int round, const std::vector<Hypothesis>& ranked,
+                         const std::vector<size_t>& stage_index) {
+  std::vector<const ReportStage*> tried;
+  for (size_t i : stage_index) tried.push_back(&report_.stages[i]);
+  double eccentricity = 0.0;
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    if (!recs_[r].train || report_.stages.empty()) continue;
+    // The residual of the model this round extended, on a training recording.
+    for (const ReportResidual& res : report_.residuals) {
+      if (res.recording == recs_[r].name && res.analysis.push.has_push) {
+        eccentricity = std::max(eccentricity, res.analysis.push.load_eccentricity);
+      }
+    }
+  }
+  for (ReportConfusion& c : JudgeConfusions(round, ranked, tried, eccentricity, o_.min_confidence)) {
+    Log(fmt::format("round {}: {} / {}: {}{}", round, c.effect,
+                    c.confused_with.empty() ? "the base model" : c.confused_with, c.evidence,
+                    c.proposal.empty() ? "" : "; proposed recording: " + c.proposal));
+    report_.confusions.push_back(std::move(c));
+  }
+}
+
 LoopResult Loop::Run() {
   const Clock::time_point start = Clock::now();
   std::string error;
@@ -219,42 +289,28 @@ LoopResult Loop::Run() {
   report_.command = o_.command;
   report_.seed = o_.seed;
   Prepare();
-  criterion_ = std::make_unique<KeepCriterion>(o_, recs_, scales_);
+  criterion_ = std::make_unique<KeepCriterion>(o_, recs_);
   calibrator_ = std::make_unique<StageCalibrator>(o_, recs_, scales_, *criterion_, *store_, threads_, log_);
-  const bool holdout = criterion_->HasHoldout();
-  report_.selection_rule =
-      holdout
-          ? fmt::format(
-                "An effect is kept when, recalibrated with it, the held-out XOR sum (summed over "
-                "the held-out recordings and frames) drops by more than max({} x (1 + p) x N, "
-                "{:.0f}% of the held-out XOR sum before), where p is the number of parameters the "
-                "effect adds and N the held-out recordings' segmentation noise (per frame the "
-                "object pixels that flicker for one frame, mean over frames, summed over "
-                "frames), the training XOR sum does not rise and the held-out mean IoU does not "
-                "fall by more than the margin makes (the margin over the held-out object "
-                "pixels; the XOR sum also drops when a mesh leaves an object it overlaps "
-                "poorly). "
-                "The drop must pass both at the models' best training fits and between the "
-                "medians over their equally good fits (fits equally good on training differ on "
-                "held-out data): up to {} of a calibration's parameter sets whose training XOR "
-                "sum exceeds the best by less than max({} x the training recordings' "
-                "segmentation noise, {:.0f}% of it), re-scored on the held-out recordings. The "
-                "previous model is replaced by the previous model with the new calibration's "
-                "values (the effect off) where that is better on training. Each round tries the {} best ranked hypotheses with confidence >= "
-                "{:.2f} and keeps the one with the largest held-out drop that passes; the loop "
-                "stops when none passes or {} effects are kept.",
-                o_.noise_factor, 100.0 * o_.min_relative_gain, o_.equally_good_fits,
-                o_.noise_factor, 100.0 * o_.min_relative_gain, o_.tries_per_round,
-                o_.min_confidence, o_.max_effects)
-          : fmt::format(
-                "No held-out recording: an effect is kept when the Bayesian information criterion "
-                "of the per-frame training XOR (n ln(SSE / n) + k ln n over all training frames, "
-                "k searched parameters) falls and the training XOR sum drops by more than "
-                "max({} x (1 + p) x N, {:.0f}% of it) (N: the training recordings' segmentation "
-                "noise, p: parameters added). Each round tries the {} best ranked hypotheses with "
-                "confidence >= {:.2f}; the loop stops when none passes or {} effects are kept.",
-                o_.noise_factor, 100.0 * o_.min_relative_gain, o_.tries_per_round,
-                o_.min_confidence, o_.max_effects);
+  report_.selection_rule = fmt::format(
+      "An effect is kept when, recalibrated with it on the training {}, it lowers the XOR of the "
+      "held-out {} frame by frame by more than {:g}% of their error beyond what chance "
+      "explains: a one-sided paired test of the per-frame differences (old model minus new, "
+      "less that share of the old error), by random sign flips of blocks of "
+      "consecutive frames (blocks twice the automatic length of Politis and White, at least 10 "
+      "per recording; {} sign sets), corrected for every hypothesis the loop has tried by the "
+      "Benjamini-Hochberg procedure at a false-discovery rate of {:g}%. The training XOR sum must "
+      "not rise and the held-out mean IoU must not fall. The previous model is replaced by the "
+      "previous model with the new calibration's values (the effect off) where that is better on "
+      "training. Each round tries the {} best ranked hypotheses with confidence >= {:.2f} and "
+      "keeps, of those that pass, the one with the largest held-out drop; the loop stops when none "
+      "passes or {} effects are kept.",
+      o_.holdout.empty() ? "frames" : "recordings",
+      o_.holdout.empty()
+          ? fmt::format("stretch of each training video (its last {:.0f}%)", 100.0 * o_.held_out_stretch)
+          : std::string("recordings"),
+      100.0 * o_.min_relative_drop,
+      o_.test_resamples, 100.0 * o_.false_discovery_rate, o_.tries_per_round, o_.min_confidence,
+      o_.max_effects);
   report_.notes.push_back(fmt::format(
       "base model: the best on the training recordings of {} independent search{} of {} "
       "evaluations ({})",
@@ -284,20 +340,22 @@ LoopResult Loop::Run() {
   calibrator_->MeasureSensitivity(&current);
   const Fit base = current;
   report_.stages.push_back(MakeStage(base, "", StageDecision::kBase));
-  report_.stages.back().criterion = holdout ? "held-out XOR sum" : "training XOR sum";
-  report_.stages.back().criterion_value =
-      static_cast<double>(base.XorSum(recs_, !holdout));
+  report_.stages.back().criterion = "held-out XOR sum";
+  report_.stages.back().criterion_value = base.XorSum(recs_, false);
   report_.stages.back().reason = "the paper's base model";
   AddResiduals(base);
-  Log(fmt::format("base: training XOR {}, held-out XOR {} ({:.1f} s){}{}{}", base.XorSum(recs_, true),
-                  base.XorSum(recs_, false), base.seconds, EquallyGoodLine(base.equally_good),
-                  RestartsLine(base.restart_training_xor),
-                  holdout ? fmt::format("; a 0.1% nudge of its values moves the held-out XOR by up "
-                                        "to {:.0f} px",
-                                        base.holdout_sensitivity_px)
-                          : std::string()));
+  Log(fmt::format("base: training XOR {:.0f}, held-out XOR {:.0f} ({:.1f} s){}{}{}",
+                  base.XorSum(recs_, true), base.XorSum(recs_, false), base.seconds,
+                  EquallyGoodLine(base.equally_good), RestartsLine(base.restart_training_xor),
+                  base.holdout_sensitivity_px > 0.0
+                      ? fmt::format("; a 0.1% nudge of one value moves the held-out XOR by up "
+                                    "to {:.0f} px ({})",
+                                    base.holdout_sensitivity_px, base.holdout_sensitivity_parameter)
+                      : std::string()));
 
-  std::set<std::string> rejected_with;  // "model|effect" pairs tried
+  // Every hypothesis tried so far, in order: the p-values the
+  // Benjamini-Hochberg correction runs over.
+  std::vector<double> p_values;
   for (int round = 1; static_cast<int>(current.effects.size()) < o_.max_effects; ++round) {
     std::vector<std::vector<Hypothesis>> per_recording;
     for (size_t r = 0; r < recs_.size(); ++r) {
@@ -322,19 +380,17 @@ LoopResult Loop::Run() {
       Log(report_.notes.back());
       break;
     }
-    int best = -1;
-    double best_gain = 0.0;
     std::vector<Fit> fits;
     std::vector<size_t> stage_index;
-    std::vector<uint8_t> passed;
+    std::vector<KeepCriterion::Verdict> verdicts;
+    std::vector<size_t> p_index;
     for (const std::string& effect : tries) {
       std::vector<std::string> effects = current.effects;
       effects.push_back(effect);
       Log(fmt::format("round {}: calibrating {} (warm start from {})", round, StageName(effects),
                       StageName(current.effects)));
-      Fit fit = calibrator_->Calibrate(index++, effects, &current);
+      Fit fit = calibrator_->Calibrate(index, effects, &current);
       calibrator_->MeasureEquallyGood(&fit);
-      calibrator_->MeasureSensitivity(&fit);
       // The reference: the previous model, or the previous model with the
       // candidate's values (the effect switched off) where that is better
       // on the training recordings: a recalibration that found better base
@@ -345,44 +401,60 @@ LoopResult Loop::Run() {
       calibrator_->Measure(&ablation);
       const bool ablation_better =
           ablation.AllOk() && ablation.XorSum(recs_, true) < current.XorSum(recs_, true);
-      SearchScales scales = scales_;
-      scales.reference = current.values;
-      const int extra = SearchSpace(StageParameterSettings({effect}, scales)).dimension() -
-                        SearchSpace(StageParameterSettings({}, scales)).dimension();
-      KeepCriterion::Verdict v =
-          criterion_->Judge(current, ablation_better ? &ablation : nullptr, fit, extra);
+      KeepCriterion::Verdict v = criterion_->Judge(
+          current, ablation_better ? &ablation : nullptr, fit, o_.seed * 1000 + static_cast<uint64_t>(index));
+      ++index;
       if (ablation_better) {
         v.reason = fmt::format(
             "against the previous model with this calibration's values and {} off (training "
-            "XOR {} < {} of the previous fit): {}",
+            "XOR {:.0f} < {:.0f} of the previous fit): {}",
             effect, ablation.XorSum(recs_, true), current.XorSum(recs_, true), v.reason);
       }
+      p_index.push_back(p_values.size());
+      p_values.push_back(v.test.p_value);
       ReportStage stage = MakeStage(fit, effect, StageDecision::kRejected);
-      stage.criterion = v.criterion;
-      stage.criterion_value = v.gain;
-      stage.reason = v.reason;
-      Log(fmt::format("round {}: {}: {}{}", round, StageName(effects), v.reason,
-                      EquallyGoodLine(fit.equally_good)));
+      stage.criterion = "held-out XOR drop";
+      stage.criterion_value = v.test.total;
+      stage.test = {v.test.frames, v.test.blocks,  v.test.total, v.test.total_low,
+                    v.test.total_high, v.test.p_value, 0, false};
       stage_index.push_back(report_.stages.size());
       report_.stages.push_back(std::move(stage));
-      passed.push_back(v.pass ? 1 : 0);
-      if (v.pass && (best < 0 || v.gain > best_gain)) {
-        best = static_cast<int>(fits.size());
-        best_gain = v.gain;
-      }
+      verdicts.push_back(std::move(v));
       fits.push_back(std::move(fit));
     }
+    // The correction over every hypothesis tried so far decides this round.
+    const std::vector<bool> significant = BenjaminiHochberg(p_values, o_.false_discovery_rate);
+    int best = -1;
+    for (size_t i = 0; i < fits.size(); ++i) {
+      const KeepCriterion::Verdict& v = verdicts[i];
+      ReportStage& stage = report_.stages[stage_index[i]];
+      stage.test.hypotheses = static_cast<int>(p_values.size());
+      stage.test.significant = significant[p_index[i]];
+      const bool pass = v.eligible && stage.test.significant;
+      stage.reason = fmt::format(
+          "{}; Benjamini-Hochberg over the {} hypotheses tried so far at a false-discovery rate "
+          "of {:g}%: {}",
+          v.reason, p_values.size(), 100.0 * o_.false_discovery_rate,
+          stage.test.significant ? "significant" : "not significant");
+      if (pass && (best < 0 || v.test.total > verdicts[static_cast<size_t>(best)].test.total)) {
+        best = static_cast<int>(i);
+      }
+      Log(fmt::format("round {}: {}: {}{}", round, StageName(fits[i].effects), stage.reason,
+                      EquallyGoodLine(fits[i].equally_good)));
+    }
     if (best < 0) {
+      AddConfusions(round, ranked, stage_index);
       report_.notes.push_back(fmt::format("round {}: none of {} tried passes the criterion: stop",
                                           round, fmt::join(tries, ", ")));
       Log(report_.notes.back());
       break;
     }
+    AddConfusions(round, ranked, stage_index);
     ReportStage& kept = report_.stages[stage_index[best]];
     kept.decision = StageDecision::kAccepted;
     kept.reason += "; the largest passing drop of this round: kept";
     for (size_t i = 0; i < fits.size(); ++i) {
-      if (static_cast<int>(i) != best && passed[i] != 0) {
+      if (static_cast<int>(i) != best && verdicts[i].eligible && report_.stages[stage_index[i]].test.significant) {
         report_.stages[stage_index[i]].reason += fmt::format(
             "; passes, but {} drops more: not kept", fits[best].effects.back());
       }
@@ -392,6 +464,16 @@ LoopResult Loop::Run() {
     AddResiduals(current);
     Log(fmt::format("round {}: kept {}{}", round, current.effects.back(),
                     EquallyGoodLine(current.equally_good)));
+  }
+  if (!current.effects.empty()) {
+    // How smooth the final model's held-out error is in its values.
+    calibrator_->MeasureSensitivity(&current);
+    for (ReportStage& s : report_.stages) {
+      if (s.decision == StageDecision::kAccepted && s.effects == current.effects) {
+        s.holdout_sensitivity_px = current.holdout_sensitivity_px;
+        s.holdout_sensitivity_parameter = current.holdout_sensitivity_parameter;
+      }
+    }
   }
 
   AddOverlays(base, "base");
@@ -429,7 +511,7 @@ std::string BeforeAfterTable(const LoopReport& report) {
     const RecordingScore* f = final_stage->ErrorOn(rec.name);
     if (b == nullptr || f == nullptr) continue;
     const double change = b->xor_sum > 0 ? 100.0 * (double(f->xor_sum) - double(b->xor_sum)) / double(b->xor_sum) : 0.0;
-    out += fmt::format("{:<22} {:<8} {:>12} {:>12} {:>7.1f}% {:>9.4f} {:>9.4f}\n", rec.name, rec.role,
+    out += fmt::format("{:<22} {:<8} {:>12.0f} {:>12.0f} {:>7.1f}% {:>9.4f} {:>9.4f}\n", rec.name, rec.role,
                        b->xor_sum, f->xor_sum, change, b->mean_iou, f->mean_iou);
   }
   std::vector<std::string> tried;

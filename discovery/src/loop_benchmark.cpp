@@ -124,11 +124,12 @@ std::string LoopCommandLine(const LoopOptions& o) {
   std::string line = fmt::format("{}", fmt::join(words, " "));
   line += fmt::format(
       " --seed {} --budget {} --effect-budget {} --optimizer {} --max-effects {} --tries {}"
-      " --min-confidence {} --equally-good-fits {} --restarts {} --overlays {} {} "
-      "--contact-friction {}"
+      " --min-confidence {} --fdr {} --held-out-stretch {} --equally-good-fits {} --restarts {}"
+      " --overlays {} {} --contact-friction {}"
       " --integrator {}",
       o.seed, o.budget, o.effect_budget, o.optimizer, o.max_effects, o.tries_per_round,
-      o.min_confidence, o.equally_good_fits, o.restarts, o.overlays_per_recording,
+      o.min_confidence, o.false_discovery_rate, o.held_out_stretch, o.equally_good_fits,
+      o.restarts, o.overlays_per_recording,
       o.simulation.outline_contact ? "--outline-contact" : "--node-contact",
       o.simulation.contact_friction, ToString(o.simulation.integrator));
   if (!o.write_html) line += " --no-html";

@@ -51,6 +51,11 @@ class In {
     if (!v.is_number_integer()) Bad(Path(key), "expected an integer");
     return v.get<int64_t>();
   }
+  bool Bool(const char* key) const {
+    const json& v = Raw(key);
+    if (!v.is_boolean()) Bad(Path(key), "expected true or false");
+    return v.get<bool>();
+  }
   uint64_t UInt(const char* key) const {
     const json& v = Raw(key);
     if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<int64_t>() >= 0)) {
@@ -89,11 +94,11 @@ RecordingScore ErrorFromJson(const json& j, const std::string& path) {
   RecordingScore e;
   e.recording = in.Text("recording");
   e.status = in.Text("status");
-  e.xor_sum = in.Int("xor_sum");
+  e.xor_sum = in.Num("xor_sum");
   e.mean_iou = in.Num("mean_iou");
   for (const json& v : in.Array("frame_xor")) {
-    if (!v.is_number_integer()) Bad(in.Path("frame_xor"), "expected integers");
-    e.frame_xor.push_back(v.get<int64_t>());
+    if (!v.is_number()) Bad(in.Path("frame_xor"), "expected numbers");
+    e.frame_xor.push_back(v.get<double>());
   }
   for (const json& v : in.Array("frame_iou")) {
     e.frame_iou.push_back(v.is_null() ? NAN : v.get<double>());
@@ -125,13 +130,21 @@ json ToJson(const ReportStage& s) {
     const EquallyGoodFits& g = s.equally_good;
     j["equally_good"] = {{"fits", g.fits},
                          {"training_tolerance_px", JsonNumber(g.training_tolerance_px)},
-                         {"holdout_xor_min", g.holdout_xor_min},
-                         {"holdout_xor_max", g.holdout_xor_max},
-                         {"holdout_xor_median", g.holdout_xor_median},
+                         {"holdout_xor_min", JsonNumber(g.holdout_xor_min)},
+                         {"holdout_xor_max", JsonNumber(g.holdout_xor_max)},
+                         {"holdout_xor_median", JsonNumber(g.holdout_xor_median)},
                          {"holdout_iou_at_min", JsonNumber(g.holdout_iou_at_min)}};
   }
   if (s.holdout_sensitivity_px > 0.0) {
     j["holdout_sensitivity_px"] = JsonNumber(s.holdout_sensitivity_px);
+    j["holdout_sensitivity_parameter"] = s.holdout_sensitivity_parameter;
+  }
+  if (s.test.frames > 0) {
+    const StageTest& t = s.test;
+    j["test"] = {{"frames", t.frames},           {"blocks", t.blocks},
+                 {"drop", JsonNumber(t.drop)},   {"drop_low", JsonNumber(t.drop_low)},
+                 {"drop_high", JsonNumber(t.drop_high)}, {"p_value", JsonNumber(t.p_value)},
+                 {"hypotheses", t.hypotheses},   {"significant", t.significant}};
   }
   if (!s.restart_training_xor.empty()) {
     json restarts = json::array();
@@ -172,9 +185,9 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
     s.equally_good.fits = static_cast<int>(g.Int("fits"));
     if (s.equally_good.fits < 1) Bad(g.Path("fits"), "expected at least 1");
     s.equally_good.training_tolerance_px = g.Num("training_tolerance_px");
-    s.equally_good.holdout_xor_min = g.Int("holdout_xor_min");
-    s.equally_good.holdout_xor_max = g.Int("holdout_xor_max");
-    s.equally_good.holdout_xor_median = g.Int("holdout_xor_median");
+    s.equally_good.holdout_xor_min = g.Num("holdout_xor_min");
+    s.equally_good.holdout_xor_max = g.Num("holdout_xor_max");
+    s.equally_good.holdout_xor_median = g.Num("holdout_xor_median");
     s.equally_good.holdout_iou_at_min = g.Num("holdout_iou_at_min");
   }
   if (j.contains("holdout_sensitivity_px")) {  // optional: measured with held-out recordings
@@ -182,6 +195,22 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
     if (!(s.holdout_sensitivity_px >= 0.0)) {
       Bad(in.Path("holdout_sensitivity_px"), "expected a number >= 0");
     }
+    if (j.contains("holdout_sensitivity_parameter")) {
+      s.holdout_sensitivity_parameter = in.Text("holdout_sensitivity_parameter");
+    }
+  }
+  if (j.contains("test")) {  // optional: tried stages only
+    const In t(in.Raw("test"), in.Path("test"));
+    s.test.frames = static_cast<int>(t.Int("frames"));
+    if (s.test.frames < 1) Bad(t.Path("frames"), "expected at least 1");
+    s.test.blocks = static_cast<int>(t.Int("blocks"));
+    s.test.drop = t.Num("drop");
+    s.test.drop_low = t.Num("drop_low");
+    s.test.drop_high = t.Num("drop_high");
+    s.test.p_value = t.Num("p_value");
+    if (!(s.test.p_value >= 0.0 && s.test.p_value <= 1.0)) Bad(t.Path("p_value"), "expected a number in [0, 1]");
+    s.test.hypotheses = static_cast<int>(t.Int("hypotheses"));
+    s.test.significant = t.Bool("significant");
   }
   if (j.contains("restart_training_xor")) {  // optional: calibrations from scratch only
     const json& restarts = in.Array("restart_training_xor");
@@ -270,6 +299,16 @@ nlohmann::json ToJson(const LoopReport& r) {
     rounds.push_back({{"round", round.round}, {"stage", round.stage}, {"hypotheses", hs}});
   }
   j["rounds"] = rounds;
+  json confusions = json::array();
+  for (const ReportConfusion& c : r.confusions) {
+    confusions.push_back({{"round", c.round},
+                          {"effect", c.effect},
+                          {"confused_with", c.confused_with},
+                          {"separated", c.separated},
+                          {"evidence", c.evidence},
+                          {"proposal", c.proposal}});
+  }
+  j["confusions"] = confusions;
   j["effects_kept"] = r.effects_kept;
   json residuals = json::array();
   for (const ReportResidual& res : r.residuals) {
@@ -345,6 +384,20 @@ LoopReport LoopReportFromJson(const nlohmann::json& doc) {
     for (const json& hyp : round.Array("hypotheses")) h.hypotheses.push_back(HypothesisFromJson(hyp));
     r.rounds.push_back(std::move(h));
   }
+  if (doc.contains("confusions")) {  // optional: reports before confusions were judged
+    const json& confusions = in.Array("confusions");
+    for (size_t i = 0; i < confusions.size(); ++i) {
+      const In c(confusions[i], fmt::format("confusions[{}]", i));
+      ReportConfusion out;
+      out.round = static_cast<int>(c.Int("round"));
+      out.effect = c.Text("effect");
+      out.confused_with = c.Text("confused_with");
+      out.separated = c.Bool("separated");
+      out.evidence = c.Text("evidence");
+      out.proposal = c.Text("proposal");
+      r.confusions.push_back(std::move(out));
+    }
+  }
   r.effects_kept = in.Texts("effects_kept");
   const json& residuals = in.Array("residuals");
   for (size_t i = 0; i < residuals.size(); ++i) {
@@ -356,7 +409,7 @@ LoopReport LoopReportFromJson(const nlohmann::json& doc) {
   for (size_t i = 0; i < overlays.size(); ++i) {
     const In o(overlays[i], fmt::format("overlays[{}]", i));
     r.overlays.push_back({o.Text("recording"), o.Text("stage"), static_cast<int>(o.Int("frame")),
-                          o.Int("xor_px"), o.Num("iou"), o.Text("png_file"), o.Text("caption")});
+                          o.Num("xor_px"), o.Num("iou"), o.Text("png_file"), o.Text("caption")});
   }
   r.notes = in.Texts("notes");
   return r;
@@ -381,7 +434,7 @@ LoopReport ReadLoopReportJson(const std::filesystem::path& path) {
   return LoopReportFromJson(doc);
 }
 
-std::vector<int> WorstFrames(const std::vector<int64_t>& frame_xor, int count, int min_gap) {
+std::vector<int> WorstFrames(const std::vector<double>& frame_xor, int count, int min_gap) {
   std::vector<int> order(frame_xor.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(),

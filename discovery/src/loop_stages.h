@@ -10,6 +10,7 @@
 
 #include "calib/discovery/loop.h"
 #include "calib/discovery/loop_report.h"
+#include "calib/discovery/paired_test.h"
 #include "calib/discovery/residual.h"
 #include "calib/discovery/stage_calibration.h"
 #include "calib/evaluator/evaluation.h"
@@ -30,6 +31,10 @@ struct LoopRecording {
   std::shared_ptr<const PreparedRecording> prepared;
   double noise_px = 0.0;  ///< SegmentationNoisePx
   std::shared_ptr<const RecordingResidualFacts> residual_facts;  ///< shared by every fit's analysis
+  /// Held out: the frames the keep rule compares start here. 0 for a
+  /// held-out recording; the split for a held-out stretch of a training
+  /// video (its first frames are the training recording).
+  int first_compared_frame = 0;
 };
 
 // One calibrated model and how it does everywhere.
@@ -43,11 +48,16 @@ struct Fit {
   std::vector<int64_t> jobs;  ///< the store's jobs of its calibration
   std::vector<double> restart_training_xor;  ///< from scratch: each search's best
   EquallyGoodFits equally_good;  ///< MeasureEquallyGood; fits == 0 until then
-  /// MeasureSensitivity: how far the held-out XOR sum moves when every
-  /// value moves by kSensitivityNudge (px; 0 until measured).
+  /// MeasureSensitivity: the largest move of the held-out XOR sum when one
+  /// value moves by 0.1 % (px; 0 until measured), and that value's name.
   double holdout_sensitivity_px = 0.0;
+  std::string holdout_sensitivity_parameter;
 
-  int64_t XorSum(const std::vector<LoopRecording>& recs, bool train) const;
+  /// The XOR sum over the training (or held-out) recordings; held out: over
+  /// their compared frames. +infinity where a recording failed.
+  double XorSum(const std::vector<LoopRecording>& recs, bool train) const;
+  /// Per held-out recording, the XOR of each compared frame.
+  std::vector<std::vector<double>> HeldOutFrameErrors(const std::vector<LoopRecording>& recs) const;
   bool AllOk() const;
 };
 
@@ -57,46 +67,40 @@ std::string StageName(const std::vector<std::string>& effects);
 /// The held-out score of one parameter set on one recording.
 struct HeldOutScore {
   bool ok = false;
-  int64_t xor_sum = 0;
+  double xor_sum = 0.0;
   double mean_iou = 0.0;
 };
 
-/// Judges an effect: does recalibrating with it lower the held-out error by
-/// more than noise, extra parameters and the objective's resolution explain?
+/// Judges an effect: does recalibrating with it lower the held-out error?
+/// Each candidate gets a p-value from a paired block test of the per-frame
+/// held-out XOR (paired_test.h); the loop corrects them for the number of
+/// hypotheses tried (Benjamini-Hochberg) and keeps only those that pass.
 class KeepCriterion {
  public:
-  KeepCriterion(const LoopOptions& options, const std::vector<LoopRecording>& recs,
-                const SearchScales& scales)
-      : o_(options), recs_(recs), scales_(scales) {}
+  KeepCriterion(const LoopOptions& options, const std::vector<LoopRecording>& recs)
+      : o_(options), recs_(recs) {}
 
   struct Verdict {
-    bool pass = false;
-    double gain = 0.0;       ///< drop of the deciding error (px)
-    double margin = 0.0;     ///< what it had to exceed
-    std::string criterion;
-    std::string reason;
+    /// Every recording simulates, the training XOR sum does not rise and
+    /// the held-out mean IoU does not fall: the test decides.
+    bool eligible = false;
+    PairedTestResult test;  ///< of the held-out frames (p = 1 when not eligible)
+    double before = 0.0;    ///< held-out XOR sum (compared frames)
+    double after = 0.0;
+    std::string reason;     ///< the measurements in words; the loop adds the decision
   };
-  /// `candidate` (the previous model plus an effect of `extra_parameters`
-  /// searched parameters) against `previous`, or against `ablation` (the
-  /// previous model with the candidate's values) where that is better on
-  /// the training recordings.
+  /// `candidate` against `previous`, or against `ablation` (the previous
+  /// model with the candidate's values) where that is better on the
+  /// training recordings. `seed` seeds the test's signs.
   Verdict Judge(const Fit& previous, const Fit* ablation, const Fit& candidate,
-                int extra_parameters) const;
+                uint64_t seed) const;
 
-  /// What a drop of the training (`train`) or held-out XOR sum `before` must
-  /// exceed to count: max(noise_factor x (1 + extra parameters) x the
-  /// recordings' segmentation noise, min_relative_gain x before).
-  double Margin(bool train, int extra_parameters, double before) const;
-  /// The recordings' segmentation noise summed over their frames.
-  double NoiseBudget(bool train) const;
-  bool HasHoldout() const;
+  /// The training recordings' segmentation noise summed over their frames.
+  double TrainingNoise() const;
 
  private:
-  std::vector<const std::vector<BitMask>*> HeldOutMasks() const;
-
   const LoopOptions& o_;
   const std::vector<LoopRecording>& recs_;
-  const SearchScales& scales_;
 };
 
 /// Calibrates models on the training recordings (jobs of the loop's store)
@@ -117,7 +121,8 @@ class StageCalibrator {
   void Measure(Fit* fit) const;
   /// The spread of the held-out error over the fit's equally good fits.
   void MeasureEquallyGood(Fit* fit) const;
-  /// How far a 0.1 % nudge of the fit's values moves its held-out error.
+  /// How far a 0.1 % nudge of each of the fit's values moves its held-out
+  /// error (report only).
   void MeasureSensitivity(Fit* fit) const;
 
  private:
@@ -133,6 +138,8 @@ class StageCalibrator {
                                             int64_t budget, uint64_t seed, Fit* fit);
   double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const;
   std::vector<int> HeldOutIndices() const;
+  /// Held-out recordings are there and none is a stretch of a training video.
+  bool WholeRecordingsHeldOut() const;
   /// Every parameter set of `sets` on every held-out recording, through the
   /// batch evaluator: result i is set i / H on held-out recording i % H (H
   /// held-out recordings). A set the model rejects is a failed result.

@@ -135,8 +135,8 @@ std::string SummaryBarsScript(const LoopReport& report) {
     const RecordingScore* b = base->ErrorOn(rec.name);
     const RecordingScore* a = fin->ErrorOn(rec.name);
     if (b == nullptr || a == nullptr) continue;
-    data += fmt::format("{} {} {}\n", GnuplotQuote(rec.name + " (" + rec.role + ")"), b->xor_sum,
-                        a->xor_sum);
+    data += fmt::format("{} {:.1f} {:.1f}\n", GnuplotQuote(rec.name + " (" + rec.role + ")"),
+                        b->xor_sum, a->xor_sum);
     ++n;
   }
   data += "EOD\n";
@@ -144,7 +144,7 @@ std::string SummaryBarsScript(const LoopReport& report) {
   return data +
          "set style data histogram\nset style histogram clustered gap 1\n"
          "set style fill solid 0.8 border -1\nset boxwidth 0.9\nset grid ytics\n"
-         "set ylabel 'XOR pixels summed over frames'\nset yrange [0:*]\nset key top right\n"
+         "set ylabel 'XOR pixel area summed over frames'\nset yrange [0:*]\nset key top right\n"
          "set xtics rotate by -20\n"
          "set title 'error before and after, every recording'\n"
          "plot $bars using 2:xtic(1) title 'before (base model)' lc rgb '#c0392b', "
@@ -161,11 +161,20 @@ std::string Params(const ParameterValues& values) {
 }
 
 // The held-out spread of a model's equally good fits, for its reason cell.
+// The keep rule's test of a tried stage, e.g. "<br>p = 0.0004, significant
+// over 3 hypotheses".
+std::string TestText(const StageTest& t) {
+  if (t.frames == 0) return "";
+  return fmt::format("<br>p = {:.4f} ({} frames, {} blocks), {} over {} hypotheses", t.p_value,
+                     t.frames, t.blocks, t.significant ? "significant" : "not significant",
+                     t.hypotheses);
+}
+
 std::string EquallyGoodText(const EquallyGoodFits& g) {
   if (g.fits == 0) return "";
   return fmt::format(
       "<br><i>{} equally good fits (training XOR within {:.0f} px of the best): held-out XOR "
-      "{} to {}</i>",
+      "{:.0f} to {:.0f}</i>",
       g.fits, g.training_tolerance_px, g.holdout_xor_min, g.holdout_xor_max);
 }
 
@@ -211,10 +220,10 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     const RecordingScore* b = base != nullptr ? base->ErrorOn(rec.name) : nullptr;
     const RecordingScore* a = fin != nullptr ? fin->ErrorOn(rec.name) : nullptr;
     h << "<tr><td>" << Escape(rec.name) << "</td><td>" << Escape(rec.role) << "</td>";
-    h << "<td class=\"n\">" << (b ? std::to_string(b->xor_sum) : "&ndash;") << "</td>";
-    h << "<td class=\"n\">" << (a ? std::to_string(a->xor_sum) : "&ndash;") << "</td>";
+    h << "<td class=\"n\">" << (b ? Num(b->xor_sum, 0) : "&ndash;") << "</td>";
+    h << "<td class=\"n\">" << (a ? Num(a->xor_sum, 0) : "&ndash;") << "</td>";
     h << "<td class=\"n\">"
-      << (a && b ? Percent(static_cast<double>(b->xor_sum), static_cast<double>(a->xor_sum))
+      << (a && b ? Percent(b->xor_sum, a->xor_sum)
                  : "&ndash;")
       << "</td>";
     h << "<td class=\"n\">" << (b ? Num(b->mean_iou, 4) : "&ndash;") << "</td>";
@@ -223,7 +232,7 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
   h << "</table>\n";
   const std::string bars = SummaryBarsScript(report);
   if (!bars.empty()) {
-    h << plot.Figure(bars, "XOR pixels summed over each recording, base model and final model");
+    h << plot.Figure(bars, "XOR pixel area summed over each recording, base model and final model");
   }
 
   // Stages.
@@ -233,8 +242,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
   for (const ReportStage& s : report.stages) {
     h << "<tr class=\"" << ToString(s.decision) << "\"><td>" << Escape(s.name) << "</td><td>"
       << Escape(s.effect_tried) << "</td><td>" << ToString(s.decision) << "</td><td>"
-      << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << "</td><td>"
-      << Escape(s.reason) << EquallyGoodText(s.equally_good)
+      << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << TestText(s.test)
+      << "</td><td>" << Escape(s.reason) << EquallyGoodText(s.equally_good)
       << RestartsText(s.restart_training_xor) << "</td><td>" << Params(s.parameters)
       << "</td><td class=\"n\">"
       << s.evaluations << "</td><td class=\"n\">" << Num(s.calibration_time_s, 1)
@@ -260,6 +269,18 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     }
     h << "</table>\n";
   }
+  if (!report.confusions.empty()) {
+    h << "<h2>Effects that look alike</h2>\n<table>\n<tr><th>round</th><th>effect</th>"
+         "<th>confused with</th><th>separated</th><th>evidence</th><th>recording that would "
+         "separate them</th></tr>\n";
+    for (const ReportConfusion& c : report.confusions) {
+      h << "<tr><td class=\"n\">" << c.round << "</td><td>" << Escape(c.effect) << "</td><td>"
+        << Escape(c.confused_with.empty() ? std::string("the base model") : c.confused_with)
+        << "</td><td>" << (c.separated ? "yes" : "no") << "</td><td>" << Escape(c.evidence)
+        << "</td><td>" << Escape(c.proposal) << "</td></tr>\n";
+    }
+    h << "</table>\n";
+  }
 
   // Per recording.
   for (const ReportRecording& rec : report.recordings) {
@@ -268,7 +289,7 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     const RecordingScore* a = fin != nullptr ? fin->ErrorOn(rec.name) : nullptr;
     const std::string error_script = ErrorPlotScript(rec, b, a);
     if (!error_script.empty()) {
-      h << plot.Figure(error_script, "XOR pixels per frame: base model and final model");
+      h << plot.Figure(error_script, "XOR pixel area per frame: base model and final model");
     }
     for (const ReportResidual& r : report.residuals) {
       if (r.recording != rec.name) continue;
@@ -297,8 +318,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
         }
       }
       h << "<figure><img class=\"overlay\" src=\"" << src << "\" alt=\"overlay frame " << o.frame
-        << "\"><figcaption>" << Escape(o.stage) << ", frame " << o.frame << ": XOR " << o.xor_px
-        << " px, IoU " << Num(o.iou, 4) << ". " << Escape(o.caption)
+        << "\"><figcaption>" << Escape(o.stage) << ", frame " << o.frame << ": XOR "
+        << Num(o.xor_px, 1) << " px, IoU " << Num(o.iou, 4) << ". " << Escape(o.caption)
         << "</figcaption></figure>\n";
       ++summary.overlays;
     }

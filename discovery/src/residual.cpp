@@ -578,15 +578,17 @@ void ResidualAnalyser::AddFrame(int frame, std::span<const Vec2> positions,
         positions.size(), mesh_.NumNodes()));
   }
   const BitMask& object = object_masks_[frame];
+  // Two bit masks (the mesh's pixels covered at least half): whole pixels.
   const FrameScore score = CompareMasks(object, mesh_mask);
+  const auto px = [](double area) { return static_cast<int64_t>(area); };
   ResidualFrame r;
   r.frame = frame;
   r.time_s = frame * scene_.frame_time_s;
   r.phase = facts_->phases[frame];
-  r.missed_px = score.missed_px;
-  r.extra_px = score.extra_px;
-  r.object_px = score.object_px;
-  r.mesh_px = score.mesh_px;
+  r.missed_px = px(score.missed_px);
+  r.extra_px = px(score.extra_px);
+  r.object_px = px(score.object_px);
+  r.mesh_px = px(score.mesh_px);
   r.iou = score.iou;
   const MaskMoments& om = facts_->object_moments[frame];
   const MaskMoments mm = ComputeMoments(mesh_mask);
@@ -603,7 +605,7 @@ void ResidualAnalyser::AddFrame(int frame, std::span<const Vec2> positions,
     r.aligned_xor_px = CountXorShifted(object, mesh_mask, -static_cast<int>(std::lround(r.offset_px.x())),
                                        -static_cast<int>(std::lround(r.offset_px.y())));
   } else {
-    r.aligned_xor_px = score.xor_px;
+    r.aligned_xor_px = px(score.xor_px);
   }
   r.force_n = facts_->force_n[frame];
   r.object_deformation = facts_->object_deformation[frame];

@@ -130,12 +130,9 @@ double Since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-// MeasureSensitivity: nudges of every value by this relative amount, their
-// signs drawn (by RestartStart) from the loop's seed plus this offset, a
-// stream apart from the restarts'.
-constexpr int kSensitivityNudges = 4;
+// MeasureSensitivity: each value is nudged up and down by this relative
+// amount, one at a time.
 constexpr double kSensitivityNudge = 1e-3;
-constexpr uint64_t kSensitivitySeedOffset = 7919;
 
 std::string JobName(int index, const std::vector<std::string>& effects) {
   std::string name = fmt::format("stage{}-base", index);
@@ -319,6 +316,13 @@ void StageCalibrator::Measure(Fit* fit) const {
   }
 }
 
+bool StageCalibrator::WholeRecordingsHeldOut() const {
+  const std::vector<int> held = HeldOutIndices();
+  return !held.empty() && std::all_of(held.begin(), held.end(), [&](int r) {
+    return recs_[static_cast<size_t>(r)].first_compared_frame == 0;
+  });
+}
+
 std::vector<int> StageCalibrator::HeldOutIndices() const {
   std::vector<int> held;
   for (size_t r = 0; r < recs_.size(); ++r) {
@@ -352,7 +356,7 @@ std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<Para
           for (const FinishedCandidate& c : done) {
             HeldOutScore& s = scores[static_cast<size_t>(c.id) * held.size() + h];
             s.ok = c.result.ok();
-            s.xor_sum = std::isfinite(c.result.score) ? static_cast<int64_t>(c.result.score) : 0;
+            s.xor_sum = std::isfinite(c.result.score) ? c.result.score : 0.0;
             s.mean_iou = c.result.iou.mean;
           }
         },
@@ -361,52 +365,61 @@ std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<Para
   return scores;
 }
 
-// A model's held-out error is a number only as far as it does not hang on
-// digits the calibration cannot resolve: while the implicit step left its
-// contacts to the projections (contacts switching between sticking and
-// sliding), moving every value by 0.1 % moved the held-out XOR sum of
-// push_viscoelastic_offset by up to 12 %; with the contacts in the step it
-// is 0.01-0.3 % on the bundled pushes. The largest move over
-// kSensitivityNudges nudges (each value times 1 +- 0.1 %, signs drawn from
-// the loop's seed) is a floor of the held-out margin; a nudge that fails to
-// simulate makes the whole held-out sum the floor.
+// How smooth the held-out error is in the parameters at a fit: each
+// searched value times 1 +- 0.1 %, one at a time, re-scored on the held-out recordings;
+// the largest move of the held-out XOR sum and the value that made it. A
+// nudge that fails to simulate (or leaves the value's range) moves it by
+// the whole sum. Measured where whole recordings are held out.
 void StageCalibrator::MeasureSensitivity(Fit* fit) const {
-  if (!criterion_.HasHoldout()) return;
+  if (!WholeRecordingsHeldOut()) return;
   const std::vector<int> held = HeldOutIndices();
-  std::vector<ParameterValues> nudged(kSensitivityNudges, fit->values);
-  for (int k = 0; k < kSensitivityNudges; ++k) {
-    const std::vector<double> u = RestartStart(static_cast<int>(fit->values.size()),
-                                               o_.seed + kSensitivitySeedOffset, k + 1);  // in [0.1, 0.9]
-    size_t j = 0;
-    for (auto& [name, value] : nudged[k]) value *= 1.0 + (u[j++] < 0.5 ? -1.0 : 1.0) * kSensitivityNudge;
+  std::vector<ParameterValues> nudged;
+  std::vector<std::string> names;
+  SearchScales scales = scales_;
+  scales.reference = fit->values;
+  for (const ParameterSetting& setting : StageParameterSettings(fit->effects, scales)) {
+    if (!setting.searched()) continue;
+    const std::string& name = setting.name;
+    const double value = fit->values.at(name);
+    for (double sign : {1.0, -1.0}) {
+      ParameterValues v = fit->values;
+      v[name] = value * (1.0 + sign * kSensitivityNudge);
+      nudged.push_back(std::move(v));
+      names.push_back(name);
+    }
   }
-  // A value nudged out of its range fails like a simulation.
   const std::vector<HeldOutScore> results = ScoreOnHeldOut(nudged, fit->effects);
-  const double at_fit = static_cast<double>(fit->XorSum(recs_, false));
+  const double at_fit = fit->XorSum(recs_, false);
   double worst = 0.0;
-  for (int k = 0; k < kSensitivityNudges; ++k) {
+  std::string worst_name;
+  for (size_t k = 0; k < nudged.size(); ++k) {
     double sum = 0.0;
     bool ok = true;
     for (size_t h = 0; h < held.size(); ++h) {
       const HeldOutScore& e = results[k * held.size() + h];
       ok &= e.ok;
-      sum += static_cast<double>(e.xor_sum);
+      sum += e.xor_sum;
     }
-    worst = std::max(worst, ok ? std::abs(sum - at_fit) : at_fit);
+    const double move = ok ? std::abs(sum - at_fit) : at_fit;
+    if (move > worst) {
+      worst = move;
+      worst_name = names[k];
+    }
   }
   fit->holdout_sensitivity_px = worst;
+  fit->holdout_sensitivity_parameter = worst_name;
 }
 
 void StageCalibrator::MeasureEquallyGood(Fit* fit) const {
-  if (!criterion_.HasHoldout() || o_.equally_good_fits == 0) return;
+  if (!WholeRecordingsHeldOut() || o_.equally_good_fits == 0) return;
   std::vector<EvaluationRecord> evaluations;
   for (int64_t job : fit->jobs) {
     for (EvaluationRecord& e : store_.Evaluations(job)) evaluations.push_back(std::move(e));
   }
   // Equally good: worse than the best on the training recordings by no more
-  // than the margin an effect must beat to count as better there (the
-  // training segmentation noise, or the minimum relative gain).
-  const double tolerance = criterion_.Margin(true, 0, static_cast<double>(fit->XorSum(recs_, true)));
+  // than their segmentation noise, or 1 % of the best.
+  const double best = fit->XorSum(recs_, true);
+  const double tolerance = std::max(criterion_.TrainingNoise(), 0.01 * best);
   std::vector<ParameterValues> sets = SelectEquallyGoodFits(evaluations, tolerance, o_.equally_good_fits);
   // The fit itself is always one of them (a warm start's best may be its
   // starting point, which no job recorded); Measure scored it already.
@@ -416,10 +429,10 @@ void StageCalibrator::MeasureEquallyGood(Fit* fit) const {
   const std::vector<HeldOutScore> results = ScoreOnHeldOut(sets, fit->effects);  // failures counted out below
   EquallyGoodFits g;
   g.training_tolerance_px = tolerance;
-  std::vector<int64_t> sums;
+  std::vector<double> sums;
   // One fit's held-out results, results_of(h) on the h-th held-out recording.
   auto add = [&](const auto& results_of) {
-    int64_t xor_sum = 0;
+    double xor_sum = 0.0;
     double iou = 0.0;
     for (size_t h = 0; h < held.size(); ++h) {
       const HeldOutScore e = results_of(h);
@@ -438,7 +451,7 @@ void StageCalibrator::MeasureEquallyGood(Fit* fit) const {
   };
   add([&](size_t h) {
     const EvaluationResult& e = fit->results[held[h]];
-    return HeldOutScore{e.ok(), e.xor_sum, e.mean_iou};
+    return HeldOutScore{e.ok(), static_cast<double>(e.xor_sum), e.mean_iou};
   });
   for (size_t k = 0; k < sets.size(); ++k) {
     add([&](size_t h) { return results[k * held.size() + h]; });

@@ -123,8 +123,8 @@ Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions&
       mesh_mask_(prepared.object_masks.at(0)) {}
 
 FrameScore Evaluator::ScoreFrame(int frame) {
-  rasterizer_.RasterizeMesh(prepared_.mesh, simulator_.positions(), mesh_mask_);
-  return CompareMasks(prepared_.object_masks[frame], mesh_mask_);
+  rasterizer_.RasterizeMeshCoverage(prepared_.mesh, simulator_.positions(), mesh_mask_, boundary_);
+  return CompareCoverage(prepared_.object_masks[frame], mesh_mask_, boundary_);
 }
 
 }  // namespace calib

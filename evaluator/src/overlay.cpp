@@ -164,7 +164,7 @@ cv::Mat RenderOverlay(const cv::Mat& frame_bgr, const Mesh& mesh,
     stats += stats.empty() ? item : "  " + item;
   };
   if (options.frame_index >= 0) append(fmt::format("frame {}", options.frame_index));
-  if (options.xor_px >= 0) append(fmt::format("XOR {} px", options.xor_px));
+  if (options.xor_px >= 0) append(fmt::format("XOR {:.1f} px", options.xor_px));
   if (options.iou >= 0.0) append(fmt::format("IoU {:.4f}", options.iou));
   const cv::Scalar white(255, 255, 255);
   std::vector<Word> stats_line;

@@ -1,5 +1,7 @@
 #include "calib/evaluator/rasterizer.h"
 
+#include "loop_edges.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -123,12 +125,8 @@ void Rasterizer::RasterizeMesh(const Mesh& mesh, const std::vector<Vec2>& positi
 void Rasterizer::RasterizeMesh(const Mesh& mesh, const Vec2* positions, BitMask& mask) {
   mask.Clear();
   BeginEdges(mask);
-  for (const std::vector<int>& loop : mesh.boundary_loops) {
-    const size_t n = loop.size();
-    for (size_t i = 0; i < n; ++i) {
-      AddEdge(positions[loop[i]], positions[loop[i + 1 == n ? 0 : i + 1]]);
-    }
-  }
+  detail::ForEachBoundaryEdge(mesh, positions,
+                              [this](const Vec2& p, const Vec2& q) { AddEdge(p, q); });
   FillEdges(mask);
 }
 
@@ -149,11 +147,7 @@ void Rasterizer::RasterizeTriangles(const Mesh& mesh, const Vec2* positions, Bit
 void Rasterizer::FillPolygons(const std::vector<std::vector<Vec2>>& loops, BitMask& mask) {
   mask.Clear();
   BeginEdges(mask);
-  for (const std::vector<Vec2>& loop : loops) {
-    const size_t n = loop.size();
-    if (n < 3) continue;
-    for (size_t i = 0; i < n; ++i) AddEdge(loop[i], loop[i + 1 == n ? 0 : i + 1]);
-  }
+  detail::ForEachLoopEdge(loops, [this](const Vec2& p, const Vec2& q) { AddEdge(p, q); });
   FillEdges(mask);
 }
 

@@ -58,7 +58,10 @@ RecordingDifference CompareRecordings(const Recording& a, const Recording& b,
         same_roi ? CompareMasks(masks_a[f], masks_b[f])
                  : CompareMasks(OnWholeFrame(masks_a[f], a.frame_width, a.frame_height),
                                 OnWholeFrame(masks_b[f], b.frame_width, b.frame_height));
-    out.frames.push_back({s.xor_px, s.missed_px, s.extra_px, s.object_px, s.mesh_px, s.iou});
+    // Two bit masks: every area is a whole number of pixels.
+    const auto px = [](double area) { return static_cast<int64_t>(area); };
+    out.frames.push_back(
+        {px(s.xor_px), px(s.missed_px), px(s.extra_px), px(s.object_px), px(s.mesh_px), s.iou});
   }
   return out;
 }

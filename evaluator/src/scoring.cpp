@@ -36,28 +36,40 @@ WordCounts CountWords(const uint64_t* o, const uint64_t* m, size_t n) {
 
 }  // namespace
 
-FrameScore CompareMasks(const BitMask& object, const BitMask& mesh) {
-  if (!object.SameShape(mesh)) {
+FrameScore CompareCoverage(const BitMask& object, const BitMask& interior,
+                           std::span<const PixelCoverage> boundary) {
+  if (!object.SameShape(interior)) {
     std::fprintf(stderr,
-                 "CompareMasks: masks differ in shape: object %dx%d at (%d, %d), mesh %dx%d at "
+                 "CompareCoverage: masks differ in shape: object %dx%d at (%d, %d), mesh %dx%d at "
                  "(%d, %d)\n",
                  object.width(), object.height(), object.origin_x(), object.origin_y(),
-                 mesh.width(), mesh.height(), mesh.origin_x(), mesh.origin_y());
+                 interior.width(), interior.height(), interior.origin_x(), interior.origin_y());
     std::abort();
   }
   // Unused high bits of each row's last word are 0 in both masks, so whole
-  // words can be counted.
+  // words can be counted. Boundary pixels are not in `interior`: counted
+  // here as mesh-free, corrected below by their coverage.
   const WordCounts c =
-      CountWords(object.words().data(), mesh.words().data(), object.words().size());
+      CountWords(object.words().data(), interior.words().data(), object.words().size());
+  double covered_object = 0.0;  // coverage summed over boundary pixels of the object
+  double covered_other = 0.0;   // and over the others
+  for (const PixelCoverage& p : boundary) {
+    (object.Get(p.x, p.y) ? covered_object : covered_other) += p.coverage;
+  }
   FrameScore s;
-  s.missed_px = c.missed;
-  s.extra_px = c.extra;
-  s.xor_px = c.missed + c.extra;
-  s.object_px = c.missed + c.both;
-  s.mesh_px = c.extra + c.both;
-  const int64_t union_px = c.missed + c.extra + c.both;
-  s.iou = union_px == 0 ? 1.0 : static_cast<double>(c.both) / static_cast<double>(union_px);
+  s.missed_px = static_cast<double>(c.missed) - covered_object;
+  s.extra_px = static_cast<double>(c.extra) + covered_other;
+  s.xor_px = s.missed_px + s.extra_px;
+  s.object_px = static_cast<double>(c.missed + c.both);
+  s.mesh_px = static_cast<double>(c.extra + c.both) + (covered_object + covered_other);
+  const double both = static_cast<double>(c.both) + covered_object;
+  const double union_px = s.object_px + s.mesh_px - both;
+  s.iou = union_px == 0.0 ? 1.0 : both / union_px;
   return s;
+}
+
+FrameScore CompareMasks(const BitMask& object, const BitMask& mesh) {
+  return CompareCoverage(object, mesh, {});
 }
 
 }  // namespace calib

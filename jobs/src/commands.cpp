@@ -135,7 +135,7 @@ SimulateSummary RunSimulate(const std::filesystem::path& recording_dir,
     const cv::Size panel(2 * prepared.recording.frame_width, 2 * prepared.recording.frame_height);
     video.Open(summary.overlay_video, prepared.recording.fps, panel);
   }
-  int64_t worst_xor = -1;
+  double worst_xor = -1.0;
   cv::Mat worst_image;
   std::vector<Disc> discs;
   const auto on_frame = [&](int frame, const Simulator& sim, const BitMask& mesh_mask,

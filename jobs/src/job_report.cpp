@@ -22,7 +22,7 @@ std::string JobReport::Report() const {
   std::string text;
   if (!best_params.empty()) text += fmt::format("best parameters: {}\n", best_params.string());
   for (const RecordingReport& r : recordings) {
-    text += fmt::format("{} {}: score {}, mean IoU {:.4f}{}\n", r.role,
+    text += fmt::format("{} {}: score {:.1f}, mean IoU {:.4f}{}\n", r.role,
                         RecordingDisplayName(r.recording), r.result.xor_sum, r.result.mean_iou,
                         r.result.ok() ? "" : " (simulation failed: " + r.result.failure_reason + ")");
     if (!r.overlay_video.empty()) text += fmt::format("  overlay video: {}\n", r.overlay_video.string());
@@ -59,9 +59,9 @@ std::string JobResultsText(const ResultStore& store, int64_t job) {
   if (!text.empty() && text.back() != '\n') text += '\n';
   if (info.result.is_object() && info.result.contains("recordings")) {
     for (const auto& r : info.result["recordings"]) {
-      text += fmt::format("{} {}: score {}, mean IoU {:.4f}, status {}\n",
+      text += fmt::format("{} {}: score {:.1f}, mean IoU {:.4f}, status {}\n",
                           r.value("role", "?"), r.value("recording", "?"),
-                          r.value("score", int64_t{0}), r.value("mean_iou", 0.0),
+                          r.value("score", 0.0), r.value("mean_iou", 0.0),
                           r.value("status", "?"));
     }
   }

@@ -29,7 +29,7 @@ ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& res
                                         const std::vector<std::string>& names) {
   ObjectiveResult out;
   out.status = CandidateStatus::kOk;
-  int64_t xor_sum = 0;
+  double xor_sum = 0.0;
   double iou_sum = 0.0;
   bool any_frame = false;
   // Frames in recording order, then frame order: the same sums for any
@@ -58,7 +58,7 @@ ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& res
                                result.failure_frame, result.failure_reason);
     }
   }
-  out.score = static_cast<double>(xor_sum);
+  out.score = xor_sum;
   if (out.iou.frames_scored > 0) out.iou.mean = iou_sum / out.iou.frames_scored;
   return out;
 }

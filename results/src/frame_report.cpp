@@ -23,8 +23,8 @@ void WriteFrameReportCsv(const std::filesystem::path& path, const EvaluationResu
   for (int frame = 0; frame < num_frames; ++frame) {
     if (frame < scored) {
       const FrameScore& s = result.frames[frame];
-      WriteRecord(out.get(), {std::to_string(frame), std::to_string(s.xor_px),
-                              std::to_string(s.missed_px), std::to_string(s.extra_px),
+      WriteRecord(out.get(), {std::to_string(frame), fmt::format("{}", s.xor_px),
+                              fmt::format("{}", s.missed_px), fmt::format("{}", s.extra_px),
                               fmt::format("{:.6f}", s.iou), "ok", ""});
     } else if (frame == result.failure_frame) {
       WriteRecord(out.get(), {std::to_string(frame), "", "", "", "", "failed", result.failure_reason});

@@ -3,12 +3,14 @@
 // (index and id) and the key.
 
 #include "calib/discovery/family_manifest.h"
+#include "calib/discovery/hypotheses.h"
 
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <fstream>
 #include <functional>
 #include <string>
@@ -193,6 +195,27 @@ TEST(FamilyManifest, OtherKeysAreIgnored) {
   doc["generator"] = "calib synth 1.0";
   doc["objects"][0]["truth"] = {{"anything", 1}};
   EXPECT_EQ(ErrorOf(doc), "");
+}
+
+// The bundled example pairs as a family (examples/bundled/family.json, the
+// input of the documented bundled-pairs benchmark): it reads, every
+// recording folder is there, and each effect the loop traces has exactly
+// one object, besides one without an effect.
+TEST(FamilyManifest, TheBundledPairsAreAFamilyWithEveryTracedEffectOnce) {
+  const FamilyManifest m = ReadFamilyManifest(std::filesystem::path(CALIB_SOURCE_DIR) / "examples" / "bundled");
+  std::vector<std::string> effects;
+  int without = 0;
+  for (const FamilyObject& o : m.objects) {
+    EXPECT_EQ(o.recordings.size(), 2u) << o.id;
+    if (o.loop_effect.empty()) ++without;
+    else effects.push_back(o.loop_effect);
+  }
+  EXPECT_EQ(without, 1);
+  std::vector<std::string> traced = TracedEffects();
+  traced.erase(std::remove(traced.begin(), traced.end(), "push_relaxation"), traced.end());
+  std::sort(traced.begin(), traced.end());
+  std::sort(effects.begin(), effects.end());
+  EXPECT_EQ(effects, traced);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include "calib/evaluator/rasterizer.h"
 #include "support/test_support.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -54,11 +55,12 @@ ResidualAnalysis ShiftAnalysis(const std::string& name, double shift, int frames
   return analyser.Finish();
 }
 
-RecordingScore Error(const std::string& recording, int64_t per_frame, int frames) {
+// Per-frame XOR areas around `per_frame` px^2, fractional as the score's are.
+RecordingScore Error(const std::string& recording, double per_frame, int frames) {
   RecordingScore e;
   e.recording = recording;
   for (int f = 0; f < frames; ++f) {
-    e.frame_xor.push_back(per_frame + (f % 7) * 10);
+    e.frame_xor.push_back(per_frame + (f % 7) * 10 + 0.25 * (f % 3));
     e.frame_iou.push_back(0.9 + 0.001 * (f % 5));
     e.xor_sum += e.frame_xor.back();
   }
@@ -100,6 +102,8 @@ LoopReport MakeReport(const fs::path& dir) {
   plastic.errors = {Error("a", 600, 40), Error("b", 700, 40)};
   plastic.reason = "held-out XOR -42%";
   plastic.equally_good = {};
+  plastic.holdout_sensitivity_parameter = "plastic_yield_strain";
+  plastic.test = {40, 10, 500.0, 320.0, 680.0, 0.0004, 1, true};
 
   ReportStage friction = plastic;
   friction.name = "base+plasticity+table_friction";
@@ -160,6 +164,16 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   EXPECT_EQ(doc["stages"][0]["holdout_sensitivity_px"], 12.5);
   EXPECT_EQ(back.stages[0].holdout_sensitivity_px, 12.5);
   EXPECT_EQ(back.stages[1].holdout_sensitivity_px, 12.5);  // copied from base above
+  EXPECT_EQ(back.stages[1].holdout_sensitivity_parameter, "plastic_yield_strain");
+  // The keep rule's test, for tried stages only.
+  EXPECT_FALSE(doc["stages"][0].contains("test"));
+  EXPECT_EQ(doc["stages"][1]["test"]["p_value"], 0.0004);
+  EXPECT_EQ(back.stages[1].test.frames, 40);
+  EXPECT_EQ(back.stages[1].test.blocks, 10);
+  EXPECT_EQ(back.stages[1].test.drop_low, 320.0);
+  EXPECT_EQ(back.stages[1].test.drop_high, 680.0);
+  EXPECT_EQ(back.stages[1].test.hypotheses, 1);
+  EXPECT_TRUE(back.stages[1].test.significant);
   // Hypotheses with their evidence.
   const auto& first = doc["rounds"][0]["hypotheses"][0];
   EXPECT_TRUE(first.contains("confidence"));
@@ -195,6 +209,12 @@ TEST(LoopReport, MalformedJsonNamesTheKey) {
   doc = ToJson(MakeReport(dir));
   doc["stages"][0]["holdout_sensitivity_px"] = -1.0;
   EXPECT_NE(Rejection(doc).find("stages[0].holdout_sensitivity_px"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][1]["test"]["p_value"] = 1.5;
+  EXPECT_NE(Rejection(doc).find("stages[1].test.p_value"), std::string::npos) << Rejection(doc);
+  doc = ToJson(MakeReport(dir));
+  doc["stages"][1]["test"]["significant"] = "yes";
+  EXPECT_NE(Rejection(doc).find("stages[1].test.significant"), std::string::npos) << Rejection(doc);
   doc = ToJson(MakeReport(dir));
   doc["stages"][0]["restart_training_xor"][1] = "low";
   EXPECT_NE(Rejection(doc).find("stages[0].restart_training_xor[1]"), std::string::npos) << Rejection(doc);
@@ -233,7 +253,9 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
   EXPECT_NE(html.find("base+plasticity"), std::string::npos);
   EXPECT_NE(html.find("3 independent searches, best training XOR of each: 2100, 1000, 1003"),
             std::string::npos);
-  EXPECT_NE(html.find(std::to_string(report.stages[1].errors[1].xor_sum)), std::string::npos);
+  EXPECT_NE(html.find(fmt::format(">{:.0f}<", report.stages[1].errors[1].xor_sum)),
+            std::string::npos)
+      << "XOR sums rounded to whole px^2 in the table";
   EXPECT_NE(html.find("a note with &lt;html&gt; &amp; &quot;quotes&quot;"), std::string::npos);
   EXPECT_EQ(html.find("This report has no plots"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir / "report.json"));

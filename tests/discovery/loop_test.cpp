@@ -1,7 +1,8 @@
 // The loop as a whole: on recordings with no effect beyond the base model it
 // adds nothing; the same seed gives the same report numbers at 1 and 2
-// threads; the report files; the contact model reaches the stored jobs; bad
-// options are named.
+// threads; the report files; the contact model reaches the stored jobs;
+// without held-out recordings a stretch of the training video is held out;
+// bad options are named.
 
 #include "loop_test_support.h"
 
@@ -33,6 +34,7 @@ TEST(Loop, AddsNothingWhereNoEffectIsPresent) {
   }
   LoopOptions options = testing::TestLoopOptions({train}, {holdout}, "loop_no_effect");
   options.overlays_per_recording = 1;
+  options.equally_good_fits = 16;
   options.write_html = true;
   const LoopResult result = RunLoop(options);
   SCOPED_TRACE(result.table);
@@ -47,10 +49,21 @@ TEST(Loop, AddsNothingWhereNoEffectIsPresent) {
   const ReportStage* final_stage = result.report.FinalStage();
   ASSERT_NE(final_stage, nullptr);
   EXPECT_EQ(final_stage->name, "base");
+  // Every effect tried was tested on the held-out frames and found wanting.
+  int tried = 0;
   for (const ReportStage& s : result.report.stages) {
-    if (s.decision != StageDecision::kBase) {
-      EXPECT_EQ(s.decision, StageDecision::kRejected) << s.name;
-    }
+    if (s.decision == StageDecision::kBase) continue;
+    ++tried;
+    EXPECT_EQ(s.decision, StageDecision::kRejected) << s.name;
+    if (s.errors.back().status != "ok") continue;
+    EXPECT_EQ(s.test.frames, result.report.recordings.back().num_frames) << s.name;
+    EXPECT_GE(s.test.blocks, 10) << s.name;
+    EXPECT_GT(s.test.p_value, 0.0) << s.name;
+    EXPECT_LE(s.test.p_value, 1.0) << s.name;
+    EXPECT_EQ(s.test.hypotheses, tried) << s.name << ": the correction counts every try so far";
+    EXPECT_LE(s.test.drop_low, s.test.drop) << s.name;
+    EXPECT_GE(s.test.drop_high, s.test.drop) << s.name;
+    EXPECT_NE(s.reason.find("Benjamini-Hochberg"), std::string::npos) << s.reason;
   }
   // The report: json that reads back, html with plots, the table printed.
   const LoopReport back = ReadLoopReportJson(result.report_json);
@@ -76,7 +89,7 @@ TEST(Loop, AddsNothingWhereNoEffectIsPresent) {
     const EquallyGoodFits& spread = stage.equally_good;
     ASSERT_GE(spread.fits, 1) << stage.name;
     EXPECT_LE(spread.fits, options.equally_good_fits + 1) << stage.name;
-    const int64_t holdout = testing::HeldOutXor(stage, result.report);
+    const double holdout = testing::HeldOutXor(stage, result.report);
     EXPECT_LE(spread.holdout_xor_min, holdout) << stage.name;
     EXPECT_GE(spread.holdout_xor_max, holdout) << stage.name;
     EXPECT_GT(spread.training_tolerance_px, 0.0) << stage.name;
@@ -96,11 +109,12 @@ TEST(Loop, EquallyGoodFitsMeasureTheHeldOutSpreadOfAFlatValley) {
                                                  "loop_equally_good");
   options.simulation = SimulationOptions{};  // the paper's: its flat valley
   options.max_effects = 0;
+  options.equally_good_fits = 16;
   const LoopResult result = RunLoop(options);
   const ReportStage& base = result.report.stages.front();
   const EquallyGoodFits& spread = base.equally_good;
   ASSERT_GE(spread.fits, 2) << "more than the best fit within 1% of its training XOR";
-  const int64_t holdout = testing::HeldOutXor(base, result.report);
+  const double holdout = testing::HeldOutXor(base, result.report);
   EXPECT_LE(spread.holdout_xor_min, spread.holdout_xor_median);
   EXPECT_LE(spread.holdout_xor_median, spread.holdout_xor_max);
   EXPECT_LE(spread.holdout_xor_min, holdout);
@@ -108,7 +122,7 @@ TEST(Loop, EquallyGoodFitsMeasureTheHeldOutSpreadOfAFlatValley) {
   // Fits equally good on training differ on held-out data by more than the
   // loop's 1% margin: a single fit's held-out error cannot judge an effect.
   EXPECT_GT(spread.holdout_xor_max - spread.holdout_xor_min, holdout / 100);
-  const int64_t training = base.errors.front().xor_sum;
+  const double training = base.errors.front().xor_sum;
   EXPECT_NEAR(spread.training_tolerance_px, 0.01 * static_cast<double>(training), 1.0)
       << "1% of the training XOR sum (above the training segmentation noise)";
   // The per-fit numbers come from the store's evaluations of the base
@@ -227,6 +241,7 @@ TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
   options.effect_budget = 12;  // phases of 3 and 9: populations cut to the budget
   options.tries_per_round = 1;
   options.min_confidence = 0.0;  // always try the top hypothesis
+  options.equally_good_fits = 4;
   options.threads = 1;
   const LoopResult one = RunLoop(options);
   options.out_dir = testing::ScratchDir("loop_determinism_2");
@@ -281,6 +296,16 @@ TEST(Loop, TheSimulationReachesTheStoredJobsAndTheReport) {
                 note.find(ToString(sim.integrator)) != std::string::npos;
     }
     EXPECT_TRUE(stated) << "paper " << paper;
+    // No held-out recording: the last third of the training video is held
+    // out, the first two thirds calibrated.
+    const std::vector<ReportRecording>& recordings = result.report.recordings;
+    ASSERT_EQ(recordings.size(), 2u);
+    EXPECT_EQ(recordings[0].role, "train");
+    EXPECT_EQ(recordings[0].num_frames, 220);
+    EXPECT_EQ(recordings[1].role, "holdout");
+    EXPECT_EQ(recordings[1].name, "push_centre_frames_220-329");
+    EXPECT_EQ(recordings[1].num_frames, 330);
+    EXPECT_EQ(recordings[0].path, recordings[1].path);
     const ResultStore store(result.store);
     const std::vector<JobInfo> jobs = store.Jobs();
     ASSERT_EQ(static_cast<int>(jobs.size()), options.restarts) << "the base model's searches";
@@ -317,6 +342,15 @@ TEST(Loop, BadOptionsAreNamed) {
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
   o.restarts = 0;
   EXPECT_NE(message(o).find("--restarts = 0"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.false_discovery_rate = 0.0;
+  EXPECT_NE(message(o).find("--fdr = 0"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.held_out_stretch = 1.0;
+  EXPECT_NE(message(o).find("--held-out-stretch = 1"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.min_relative_drop = -0.1;
+  EXPECT_NE(message(o).find("--min-drop = -0.1"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "absent_recording"}, {}, "loop_bad");
   EXPECT_NE(message(o).find("absent_recording"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
@@ -436,27 +470,6 @@ TEST(Loop, SegmentationNoiseCountsOneFrameFlicker) {
   masks[3].SetSpan(14, 0, 3);
   EXPECT_DOUBLE_EQ(SegmentationNoisePx(masks), 5.0);  // 5, 7, 3 -> mean 5
   EXPECT_EQ(SegmentationNoisePx({masks[0], masks[1]}), 0.0);
-}
-
-// The IoU guard's tolerance: the XOR margin over the held-out object
-// pixels, summed over recordings and frames.
-TEST(Loop, IouToleranceIsTheMarginOverTheHeldOutObjectPixels) {
-  auto object = [](int frames, int rows) {
-    std::vector<BitMask> masks;
-    for (int f = 0; f < frames; ++f) {
-      BitMask m(100, 20);
-      for (int y = 0; y < rows; ++y) m.SetSpan(y, 0, 50);  // 50 pixels a row
-      masks.push_back(m);
-    }
-    return masks;
-  };
-  const std::vector<BitMask> a = object(4, 10), b = object(2, 5);  // 2000 and 500 pixels
-  EXPECT_DOUBLE_EQ(IouTolerance(250.0, {&a, &b}), 250.0 / 2500.0);
-  EXPECT_DOUBLE_EQ(IouTolerance(250.0, {&a}), 250.0 / 2000.0);
-  EXPECT_EQ(IouTolerance(-5.0, {&a}), 0.0) << "no negative tolerance";
-  const std::vector<BitMask> empty(3, BitMask(100, 20));
-  EXPECT_EQ(IouTolerance(250.0, {&empty}), 0.0) << "no object: no tolerance";
-  EXPECT_EQ(IouTolerance(250.0, {}), 0.0);
 }
 
 }  // namespace

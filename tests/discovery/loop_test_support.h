@@ -66,8 +66,8 @@ inline LoopOptions TestLoopOptions(const std::vector<std::filesystem::path>& tra
   return o;
 }
 
-inline int64_t HeldOutXor(const ReportStage& stage, const LoopReport& report) {
-  int64_t s = 0;
+inline double HeldOutXor(const ReportStage& stage, const LoopReport& report) {
+  double s = 0.0;
   for (const ReportRecording& r : report.recordings) {
     if (r.role == "holdout") s += stage.ErrorOn(r.name)->xor_sum;
   }

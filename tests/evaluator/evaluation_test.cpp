@@ -1,8 +1,9 @@
 // Evaluating candidates on the reference scene: the score is the sum of the
-// per-frame XOR, identical input gives bit-identical results, a blow-up is a
-// failed result with its reason and frame (never an exception) whose mean
-// IoU counts the frames it did not simulate as 0, and the
-// scene is built from the recording as the spec says.
+// per-frame XOR of pixel areas with the mesh's sub-pixel coverage (on_frame
+// gets the pixels covered at least half as a bit mask), identical input gives
+// bit-identical results, a blow-up is a failed result with its reason and
+// frame (never an exception) whose mean IoU counts the frames it did not
+// simulate as 0, and the scene is built from the recording as the spec says.
 
 #include "calib/evaluator/evaluation.h"
 
@@ -12,6 +13,7 @@
 
 #include <cmath>
 #include <functional>
+#include <vector>
 
 namespace calib {
 namespace {
@@ -23,7 +25,8 @@ TEST(Evaluator, RestShapeMatchesItsOwnMaskInFrameZero) {
   const EvaluationResult result = evaluator.Evaluate(bench::ReferenceParameters());
   ASSERT_TRUE(result.ok()) << result.failure_reason;
   ASSERT_EQ(result.frames.size(), 60u);
-  EXPECT_EQ(result.frames[0].xor_px, 0);
+  // Its outline runs along pixel edges, so it covers whole pixels.
+  EXPECT_EQ(result.frames[0].xor_px, 0.0);
   EXPECT_DOUBLE_EQ(result.frames[0].iou, 1.0);
   // The finger dents the mesh later on, so later frames disagree with the
   // (static) object mask.
@@ -33,7 +36,7 @@ TEST(Evaluator, RestShapeMatchesItsOwnMaskInFrameZero) {
 TEST(Evaluator, ScoreIsTheSumOfPerFrameXor) {
   Evaluator evaluator(Reference(), {});
   const EvaluationResult result = evaluator.Evaluate(bench::ReferenceParameters());
-  int64_t sum = 0;
+  double sum = 0.0;  // in frame order, as the evaluator sums
   double iou = 0.0;
   for (const FrameScore& f : result.frames) {
     sum += f.xor_px;
@@ -45,6 +48,40 @@ TEST(Evaluator, ScoreIsTheSumOfPerFrameXor) {
   EXPECT_EQ(result.xor_sum, sum);
   EXPECT_NEAR(result.mean_iou, iou / result.frames.size(), 1e-15);
   EXPECT_EQ(result.num_frames, 60);
+}
+
+TEST(Evaluator, ScoresTheCoverageAndHandsOnTheHalfCoveredPixels) {
+  const PreparedRecording& prepared = Reference();
+  Evaluator evaluator(prepared, {});
+  Rasterizer rasterizer;
+  BitMask interior(prepared.object_masks[0]);
+  std::vector<PixelCoverage> boundary;
+  bool any_fraction = false;
+  const EvaluationResult result = evaluator.Evaluate(
+      bench::ReferenceParameters(),
+      [&](int frame, const Simulator& sim, const BitMask& mesh_mask, const FrameScore& score) {
+        const BitMask& object = prepared.object_masks[frame];
+        rasterizer.RasterizeMeshCoverage(prepared.mesh, sim.positions(), interior, boundary);
+        const FrameScore expected = CompareCoverage(object, interior, boundary);
+        EXPECT_EQ(score.xor_px, expected.xor_px) << "frame " << frame;
+        EXPECT_EQ(score.iou, expected.iou) << "frame " << frame;
+        any_fraction |= score.xor_px != std::floor(score.xor_px);
+        AddHalfCovered(boundary, interior);
+        EXPECT_TRUE(mesh_mask == interior) << "frame " << frame;
+        // Rounding a pixel's coverage moves its XOR by at most a half.
+        EXPECT_NEAR(CompareMasks(object, mesh_mask).xor_px, score.xor_px,
+                    0.5 * static_cast<double>(boundary.size()))
+            << "frame " << frame;
+      });
+  ASSERT_TRUE(result.ok()) << result.failure_reason;
+  EXPECT_TRUE(any_fraction) << "the dented mesh covers pixels in part";
+  // Without a callback (no bit mask made): the same scores.
+  const EvaluationResult plain = evaluator.Evaluate(bench::ReferenceParameters());
+  ASSERT_EQ(plain.frames.size(), result.frames.size());
+  for (size_t f = 0; f < plain.frames.size(); ++f) {
+    EXPECT_EQ(plain.frames[f].xor_px, result.frames[f].xor_px) << "frame " << f;
+  }
+  EXPECT_EQ(plain.xor_sum, result.xor_sum);
 }
 
 TEST(Evaluator, IdenticalInputGivesBitIdenticalScore) {

@@ -1,73 +1,27 @@
 #include "calib/evaluator/rasterizer.h"
 
+#include "polygon_support.h"
+#include "support/allocation_counter.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
-#include <new>
 #include <numbers>
 #include <random>
 #include <string>
 #include <vector>
 
-// Allocation counter for the steady-state test: every global operator new in
-// this test binary goes through here.
-namespace {
-std::atomic<int64_t> g_allocations{0};
-}  // namespace
-
-// GCC pairs the inlined free() below with `new` expressions elsewhere and
-// warns of a mismatch; malloc/free are the matching pair here.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-#pragma GCC diagnostic pop
-
 namespace calib {
 namespace {
 
-using Loop = std::vector<Vec2>;
-
-// Uniform in [lo, hi) from the raw engine output (std:: distributions differ
-// between standard libraries).
-double Uniform(std::mt19937_64& rng, double lo, double hi) {
-  return lo + (hi - lo) * static_cast<double>(rng() >> 11) * 0x1.0p-53;
-}
-
-double ShoelaceArea(const Loop& loop) {
-  double twice = 0.0;
-  for (size_t i = 0; i < loop.size(); ++i) twice += Cross(loop[i], loop[(i + 1) % loop.size()]);
-  return 0.5 * std::abs(twice);
-}
-
-double Perimeter(const Loop& loop) {
-  double sum = 0.0;
-  for (size_t i = 0; i < loop.size(); ++i) sum += (loop[(i + 1) % loop.size()] - loop[i]).norm();
-  return sum;
-}
-
-Loop Rectangle(double x0, double y0, double x1, double y1) {
-  return {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
-}
-
-Loop RegularPolygon(const Vec2& centre, double radius, int sides, double phase_rad) {
-  Loop loop;
-  for (int k = 0; k < sides; ++k) {
-    const double a = phase_rad + 2.0 * std::numbers::pi * k / sides;
-    loop.push_back(centre + radius * Vec2(std::cos(a), std::sin(a)));
-  }
-  return loop;
-}
+using testing::Loop;
+using testing::Perimeter;
+using testing::Rectangle;
+using testing::RegularPolygon;
+using testing::ShoelaceArea;
+using testing::Uniform;
 
 // Winding number of `loops` at p by the rasteriser's rule, evaluated
 // independently per pixel: an edge counts when p.y lies in [min y, max y) of
@@ -487,14 +441,14 @@ TEST(Rasterizer, SteadyStateDoesNotAllocate) {
   BitMask mask(200, 150, 10, 5);
   std::vector<Vec2> x = Deform(mesh.rest_positions, mesh.rest_positions[0], 3.0);
   r.RasterizeMesh(mesh, x, mask);  // warm-up: buffers grow here
-  const int64_t before = g_allocations.load();
+  const int64_t before = testing::Allocations();
   int64_t covered = 0;
   for (int frame = 0; frame < 20; ++frame) {
     for (Vec2& p : x) p += Vec2(0.37, -0.21);  // stays well inside the mask rows
     r.RasterizeMesh(mesh, x, mask);
     covered += mask.Count();
   }
-  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_EQ(testing::Allocations() - before, 0);
   EXPECT_GT(covered, 0);
 }
 

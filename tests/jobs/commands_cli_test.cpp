@@ -108,12 +108,13 @@ TEST(CompareCli, RecordingsOfDifferentLengthsAreNamed) {
   EXPECT_HAS(r.err, "concave_1 (1074 frames)");
 }
 
-// The score's first line, "score (XOR pixels summed over frames): N".
-int64_t PrintedScore(const std::string& out) {
-  const std::string key = "score (XOR pixels summed over frames): ";
+// The score's first line, "score (XOR pixel area summed over frames): N",
+// N exactly.
+double PrintedScore(const std::string& out) {
+  const std::string key = "score (XOR pixel area summed over frames): ";
   const size_t at = out.find(key);
   EXPECT_NE(at, std::string::npos) << out;
-  return at == std::string::npos ? -1 : std::stoll(out.substr(at + key.size()));
+  return at == std::string::npos ? -1.0 : std::stod(out.substr(at + key.size()));
 }
 
 // A simulation option of `calib score` reaches the simulation: the printed

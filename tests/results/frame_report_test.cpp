@@ -27,9 +27,9 @@ TEST(FrameReport, MarksFailedAndUnsimulatedFramesAndKeepsTheReasonIntact) {
   result.failure_frame = 2;
   result.failure_reason = R"(node 3 left the scene ("12.5, 7" px), diverged)";
   result.frames = {FrameScore{}, FrameScore{}};
-  result.frames[1].xor_px = 17;
-  result.frames[1].missed_px = 10;
-  result.frames[1].extra_px = 7;
+  result.frames[1].xor_px = 17.375;  // pixel areas, px^2
+  result.frames[1].missed_px = 10.25;
+  result.frames[1].extra_px = 7.125;
   result.frames[1].iou = 0.875;
   const auto path = testing::ScratchDir("report") / "frames.csv";
   WriteFrameReportCsv(path, result, 5);
@@ -40,7 +40,8 @@ TEST(FrameReport, MarksFailedAndUnsimulatedFramesAndKeepsTheReasonIntact) {
   ASSERT_EQ(rows.size(), 6u);
   EXPECT_EQ(rows[0], (std::vector<std::string>{"frame", "xor", "missed", "extra", "iou", "status",
                                                "reason"}));
-  EXPECT_EQ(rows[2], (std::vector<std::string>{"1", "17", "10", "7", "0.875000", "ok", ""}));
+  EXPECT_EQ(rows[2],
+            (std::vector<std::string>{"1", "17.375", "10.25", "7.125", "0.875000", "ok", ""}));
   EXPECT_EQ(rows[3][5], "failed");
   EXPECT_EQ(rows[3][6], result.failure_reason);
   EXPECT_EQ(rows[4][5], "not_simulated");

@@ -1,7 +1,7 @@
 #pragma once
-// The keep criterion of the closed loop (loop.h, docs/loop.md): the
-// measurements an effect's held-out drop is judged against. The judgement
-// itself (KeepCriterion, discovery/src/loop_stages.h) combines them.
+// Measurements of the closed loop's keep rule (loop.h, docs/loop.md). The
+// rule itself is a statistical test (paired_test.h) that KeepCriterion
+// (discovery/src/loop_stages.h) applies.
 
 #include "calib/evaluator/bit_mask.h"
 #include "calib/core/parameters.h"
@@ -16,14 +16,6 @@ namespace calib {
 /// flicker, which no motion smoother than the frame rate makes). Returns the
 /// mean over frames 1..n-2 (0 with fewer than 3 frames).
 double SegmentationNoisePx(const std::vector<BitMask>& object_masks);
-
-/// The fall of the held-out mean IoU that an XOR margin of `margin_px`
-/// allows: the margin over the object pixels of the held-out recordings
-/// (summed over their frames). A rise of the XOR sum by the margin, spread
-/// over the frames, lowers each frame's IoU by at most its share over the
-/// object's pixels; an IoU fall the XOR margin calls insignificant is no
-/// fall (docs/loop.md, the criterion). 0 without object pixels.
-double IouTolerance(double margin_px, const std::vector<const std::vector<BitMask>*>& held_out_masks);
 
 /// The parameter sets of a calibration as good as its best on the training
 /// recordings: the successful `evaluations` (of one or more jobs of the same

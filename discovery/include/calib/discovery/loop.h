@@ -2,8 +2,8 @@
 // The closed loop behind `calib loop`: calibrate the base model, analyse the
 // residual of the best fit on every recording, trace it to ranked effect
 // hypotheses, add the most promising effects one at a time, recalibrate,
-// keep an effect only when it lowers the held-out error by more than noise
-// and extra parameters explain, and report everything (report.json,
+// keep an effect only when a paired test says it lowers the held-out error
+// (corrected for the hypotheses tried), and report everything (report.json,
 // report.html, a before / after table). Documented in docs/loop.md.
 //
 // Each calibration is a job of the results store DIR/store.sqlite (the
@@ -63,20 +63,28 @@ struct LoopOptions {
   /// A hypothesis below this confidence is not tried (hypotheses.h: 0 means
   /// no residual worth explaining, or the recording cannot show it).
   double min_confidence = 0.05;
-  /// Criterion: the held-out XOR sum must drop by more than
-  /// noise_factor x (1 + extra parameters) x the held-out recordings'
-  /// segmentation noise (flicker pixels summed over their frames), and by
-  /// more than min_relative_gain of itself. See docs/loop.md.
-  double noise_factor = 1.0;
-  double min_relative_gain = 0.01;
-  /// The held-out error of a model is known only up to the spread of its
-  /// equally good fits (SelectEquallyGoodFits: its calibration's parameter
-  /// sets whose training XOR sum exceeds the best by less than the margin
-  /// above computed on the training recordings): up to this many of them
-  /// are re-scored on the held-out recordings, and an effect's held-out
-  /// drop must pass both at the best fits and between the medians over
-  /// them. 0: at the best fits only.
-  int equally_good_fits = 16;
+  /// The keep rule (docs/loop.md): an effect is kept when a paired block
+  /// test of its per-frame held-out XOR drop (paired_test.h) is significant
+  /// after the Benjamini-Hochberg correction over every hypothesis the loop
+  /// has tried, at this false-discovery rate.
+  double false_discovery_rate = 0.05;
+  /// The smallest held-out drop worth a model term, as a fraction of the
+  /// reference's held-out XOR: the test's null hypothesis is "the effect
+  /// lowers the held-out error by at most this much", so a term that buys a
+  /// consistent but negligible drop (a few pixels a frame) is not kept.
+  double min_relative_drop = 0.02;
+  /// Random sign sets of the test (its smallest p-value is 1 / (n + 1)).
+  int test_resamples = 9999;
+  /// With no held-out recording, the training videos' frames from this
+  /// fraction on are held out: the loop calibrates on the frames before and
+  /// tests on the rest (a held-out stretch of each training video).
+  double held_out_stretch = 1.0 / 3.0;
+  /// Report only: up to this many of a calibration's parameter sets as good
+  /// as its best on training (SelectEquallyGoodFits, within the training
+  /// recordings' segmentation noise or 1 % of the best) re-scored on the
+  /// held-out recordings, to show how far the training data pin the
+  /// held-out error down. 0: not measured.
+  int equally_good_fits = 0;
   /// Independent searches of a calibration from scratch (the base model),
   /// each with the whole `budget`: the first from the box's centre, the
   /// others from seeded points of the box (RestartStart). The best on the

@@ -35,9 +35,9 @@ struct ReportRecording {
 struct RecordingScore {
   std::string recording;       ///< a ReportRecording::name
   std::string status = "ok";   ///< "ok" or "failed"
-  int64_t xor_sum = 0;         ///< XOR pixels summed over the frames
+  double xor_sum = 0.0;        ///< XOR pixel area (px^2) summed over the frames
   double mean_iou = 0.0;
-  std::vector<int64_t> frame_xor;  ///< per frame (may be empty); plotted
+  std::vector<double> frame_xor;  ///< per frame (may be empty); plotted
   std::vector<double> frame_iou;
 
   /// From an evaluation (per-frame values included).
@@ -58,10 +58,23 @@ StageDecision StageDecisionFromString(const std::string& text);
 struct EquallyGoodFits {
   int fits = 0;                       ///< distinct parameter sets re-scored; 0: not measured
   double training_tolerance_px = 0.0;  ///< training XOR sum within this of the best
-  int64_t holdout_xor_min = 0;        ///< held-out XOR sum over the held-out recordings
-  int64_t holdout_xor_max = 0;
-  int64_t holdout_xor_median = 0;     ///< the lower median
+  double holdout_xor_min = 0.0;       ///< held-out XOR sum over the held-out recordings
+  double holdout_xor_max = 0.0;
+  double holdout_xor_median = 0.0;    ///< the lower median
   double holdout_iou_at_min = 0.0;    ///< held-out mean IoU of the fit with the minimum
+};
+
+/// The keep rule's paired test of a tried effect (paired_test.h).
+struct StageTest {
+  int frames = 0;          ///< held-out frames compared; 0: not tested
+  int blocks = 0;
+  double drop = 0.0;       ///< held-out XOR sum before minus after (compared frames)
+  double drop_low = 0.0;   ///< its 95 % interval
+  double drop_high = 0.0;
+  double p_value = 1.0;
+  /// Benjamini-Hochberg over the hypotheses tried up to this stage's round.
+  int hypotheses = 0;
+  bool significant = false;
 };
 
 /// One calibrated model: the base model, or the kept effects plus one tried.
@@ -84,10 +97,14 @@ struct ReportStage {
   /// independent searches: the best training XOR sum each reached, in
   /// order (the first from the box's centre). Empty for warm-started stages.
   std::vector<double> restart_training_xor;
-  /// With held-out recordings: the largest move of the held-out XOR sum
-  /// when every value of the stage's fit moves by 0.1 % (a floor of the
-  /// held-out margin); 0: not measured.
+  /// With held-out recordings, for the base and the final model: the
+  /// largest move of the held-out XOR sum when one value of the stage's fit
+  /// moves by 0.1 %, and that value; 0: not measured.
   double holdout_sensitivity_px = 0.0;
+  std::string holdout_sensitivity_parameter;
+  /// The keep rule's test of this stage against the model it extends
+  /// (tried stages only; `frames == 0`: not tested).
+  StageTest test;
 
   /// The error on `recording`, or nullptr.
   const RecordingScore* ErrorOn(const std::string& recording) const;
@@ -113,10 +130,21 @@ struct ReportOverlay {
   std::string recording;
   std::string stage;
   int frame = 0;
-  int64_t xor_px = 0;
+  double xor_px = 0.0;  ///< the frame's XOR area, px^2
   double iou = 0.0;
   std::string png_file;  ///< relative to the report's folder
   std::string caption;
+};
+
+/// A pair of effects that look alike in the residual, met in a round
+/// (confusions.h): separated or not, by what, and the recording that would.
+struct ReportConfusion {
+  int round = 0;
+  std::string effect;
+  std::string confused_with;  ///< "" for the base model (no effect)
+  bool separated = false;
+  std::string evidence;       ///< what decided, in numbers, or why these recordings cannot
+  std::string proposal;       ///< the recording that would separate them; empty when separated
 };
 
 struct LoopReport {
@@ -128,6 +156,7 @@ struct LoopReport {
   std::vector<ReportRecording> recordings;
   std::vector<ReportStage> stages;  ///< in the order calibrated; the first is the base
   std::vector<HypothesisRound> rounds;
+  std::vector<ReportConfusion> confusions;
   std::vector<std::string> effects_kept;
   std::vector<ReportResidual> residuals;
   std::vector<ReportOverlay> overlays;
@@ -154,6 +183,6 @@ LoopReport ReadLoopReportJson(const std::filesystem::path& path);
 
 /// The `count` frames of largest XOR that lie at least `min_gap` frames
 /// apart, worst first (for overlays).
-std::vector<int> WorstFrames(const std::vector<int64_t>& frame_xor, int count, int min_gap);
+std::vector<int> WorstFrames(const std::vector<double>& frame_xor, int count, int min_gap);
 
 }  // namespace calib

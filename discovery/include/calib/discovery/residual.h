@@ -33,6 +33,10 @@
 // residual that persists after release and the relation of error to
 // deformation.
 //
+// It reads the mesh as the bit mask that Evaluator hands on_frame (the
+// pixels the mesh covers at least half), so its counts are whole pixels,
+// near but not equal to the score's XOR of pixel areas (scoring.h).
+//
 // Conventions: frame pixels (x right, y down, origin at the top-left pixel's
 // corner; a mask pixel stands for its centre). Angles in radians, measured
 // from +x towards +y (clockwise on screen). "Offset" is always mesh minus
@@ -355,7 +359,7 @@ struct ResidualAnalysis {
   double rest_perimeter_px = 0.0;
   double rest_radius_of_gyration_px = 0.0;
 
-  int64_t xor_sum = 0;
+  int64_t xor_sum = 0;  ///< XOR pixels of the bit masks over the frames analysed
   double mean_xor_px = 0.0;
   double mean_iou = 0.0;
   double mean_aligned_xor_px = 0.0;

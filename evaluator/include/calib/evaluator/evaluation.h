@@ -1,6 +1,7 @@
 #pragma once
 // Scoring a candidate: simulate the whole recording with one parameter set
-// and compare the rasterised mesh with the segmented object in every frame.
+// and compare the mesh with the segmented object in every frame: per frame
+// the XOR of pixel areas, with the mesh's sub-pixel coverage (scoring.h).
 //
 // PrepareRecording does everything that does not depend on the candidate
 // once (segmentation, mesh, scene); an Evaluator holds one thread's
@@ -18,6 +19,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -73,7 +75,9 @@ struct EvaluationResult {
   /// frames [0, failure_frame) when kFailed).
   std::vector<FrameScore> frames;
   int num_frames = 0;     ///< frames in the recording
-  int64_t xor_sum = 0;    ///< the score: XOR pixels summed over `frames`
+  /// The score: the frames' XOR areas (FrameScore::xor_px, px^2) summed over
+  /// `frames` in frame order.
+  double xor_sum = 0.0;
   /// Over all num_frames frames, a frame not simulated (after a failure)
   /// counting 0: a candidate that failed at frame 1 of 330 must not look
   /// good (when kOk, the mean over `frames`).
@@ -96,11 +100,16 @@ class Evaluator {
   /// Never throws for a candidate that blows up: that is a kFailed result.
   /// The base model only: with effects, std::logic_error (use ParameterValues).
   EvaluationResult Evaluate(const ModelParameters& params) {
-    return Evaluate(params, [](int, const Simulator&, const BitMask&, const FrameScore&) {});
+    return Evaluate(params, IgnoreFrames{});
   }
 
   /// As above, calling on_frame(frame, simulator, mesh_mask, score) after
-  /// each frame is scored (for overlays and reports).
+  /// each frame is scored (for overlays and reports). `score` is the frame's
+  /// score, from the mesh's sub-pixel coverage; `mesh_mask` is a bit mask
+  /// (same shape as the object masks) of the pixels the mesh covers at
+  /// least half: the wholly covered ones and those of the outline with
+  /// coverage >= 0.5 (AddHalfCovered). Comparing it with the object mask
+  /// (CompareMasks) gives pixel counts close to, not equal to, `score`.
   template <class OnFrame>
   EvaluationResult Evaluate(const ModelParameters& params, OnFrame&& on_frame);
 
@@ -110,7 +119,7 @@ class Evaluator {
   /// naming the parameter; a candidate that blows up is a kFailed result.
   /// Without effects the result is that of Evaluate(ModelParameters::FromValues(values)).
   EvaluationResult Evaluate(const ParameterValues& values) {
-    return Evaluate(values, [](int, const Simulator&, const BitMask&, const FrameScore&) {});
+    return Evaluate(values, IgnoreFrames{});
   }
 
   template <class OnFrame>
@@ -119,6 +128,14 @@ class Evaluator {
   const Simulator& simulator() const { return simulator_; }
 
  private:
+  // The callback of the overloads without one: Run then skips the bit mask.
+  struct IgnoreFrames {
+    void operator()(int, const Simulator&, const BitMask&, const FrameScore&) const {}
+  };
+
+  // Rasterises the current positions' coverage into mesh_mask_ (the
+  // wholly covered pixels) and boundary_, and compares it with the frame's
+  // object mask.
   FrameScore ScoreFrame(int frame);
   /// Simulates and scores every frame from the state Reset left.
   template <class OnFrame>
@@ -128,6 +145,7 @@ class Evaluator {
   Simulator simulator_;
   Rasterizer rasterizer_;
   BitMask mesh_mask_;
+  std::vector<PixelCoverage> boundary_;  // the partly covered pixels
 };
 
 template <class OnFrame>
@@ -155,7 +173,10 @@ EvaluationResult Evaluator::Run(OnFrame&& on_frame) {
     result.frames.push_back(score);
     result.xor_sum += score.xor_px;
     iou_sum += score.iou;
-    on_frame(frame, simulator_, mesh_mask_, score);
+    if constexpr (!std::is_same_v<std::remove_cvref_t<OnFrame>, IgnoreFrames>) {
+      AddHalfCovered(boundary_, mesh_mask_);
+      on_frame(frame, simulator_, mesh_mask_, score);
+    }
   }
   if (simulator_.status() == SimulationStatus::kFailed) {
     result.status = EvaluationStatus::kFailed;

@@ -29,8 +29,8 @@ namespace calib {
 struct OverlayOptions {
   /// Shown in every panel's label when >= 0.
   int frame_index = -1;
-  /// The frame's XOR count, shown when >= 0.
-  int64_t xor_px = -1;
+  /// The frame's XOR area (FrameScore::xor_px, px^2), shown when >= 0.
+  double xor_px = -1.0;
   /// The frame's IoU, shown when >= 0.
   double iou = -1.0;
 

@@ -53,7 +53,8 @@ struct IouSummary {
 
 struct ObjectiveResult {
   CandidateStatus status = CandidateStatus::kFailed;
-  /// Total XOR pixels over every recording and frame scored (lower is better).
+  /// Total XOR pixel area (px^2, EvaluationResult::xor_sum) over every
+  /// recording and frame scored, summed in recording order (lower is better).
   /// For a failed candidate: over the frames scored before the failure
   /// (evidence only; the failure policy decides what the optimiser is told).
   double score = std::numeric_limits<double>::quiet_NaN();
@@ -85,8 +86,8 @@ class Objective {
 
 /// The calibration objective: simulate every training recording with the
 /// candidate (the base model plus the model's effects; a candidate names
-/// every parameter of ModelParameterSpecs(model)) and sum the XOR pixels
-/// over all frames. A candidate is failed
+/// every parameter of ModelParameterSpecs(model)) and sum the XOR pixel
+/// areas over all frames. A candidate is failed
 /// when any recording's simulation fails; its reason names the recording
 /// and frame.
 class RecordingObjective final : public Objective {

@@ -1,7 +1,9 @@
 #pragma once
 // The per-frame report of one evaluation as CSV: one row per video frame.
 //
-// Columns: frame, xor, missed, extra, iou, status, reason. `status` is "ok"
+// Columns: frame, xor, missed, extra, iou, status, reason; xor, missed and
+// extra are pixel areas (px^2, FrameScore), written exactly (the shortest
+// text that reads back to the same double). `status` is "ok"
 // for a scored frame, "failed" for the frame at which the simulation failed
 // (with the reason) and "not_simulated" for the frames after it.
 //

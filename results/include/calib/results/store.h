@@ -123,7 +123,7 @@ struct EvaluationRecord {
   ParameterValues parameters;  ///< every model parameter, fixed ones included
   std::vector<double> x;       ///< the candidate's point as the optimiser asked it
   bool ok = false;             ///< false: failed (see reason)
-  double score = 0.0;          ///< ok: the objective (XOR pixels over the training set); failed: NaN
+  double score = 0.0;          ///< ok: the objective (XOR area over the training set); failed: NaN
   double mean_iou = 0.0;       ///< ok: over every frame; failed: NaN (never ranks above an ok one)
   double iou_min = 0.0;        ///< ok: per-frame IoU summary; failed: NaN
   double iou_max = 0.0;
