@@ -108,7 +108,9 @@ TEST(ExternalPairs, X3ToX4KeepsNoEffectItDoesNotHave) {
   ExpectOnlyEffectsPresent(report, ExternalDir() / "x3");
   const bool kept = std::find(report.effects_kept.begin(), report.effects_kept.end(), truth) !=
                     report.effects_kept.end();
-  if (kept) EXPECT_LE(HeldOutChange(report), -0.10);
+  if (kept) {
+    EXPECT_LE(HeldOutChange(report), -0.10);
+  }
 }
 
 }  // namespace
