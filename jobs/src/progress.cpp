@@ -69,8 +69,8 @@ std::string FormatProgressBar(const RunProgress& p, double rate, int width) {
   const double fraction =
       p.budget > 0 ? std::clamp(static_cast<double>(done) / p.budget, 0.0, 1.0) : 0.0;
   const int filled = static_cast<int>(std::floor(fraction * bar_width));
-  std::string text = "[" + std::string(filled, '#') + std::string(bar_width - filled, '.') + "]";
-  text += tail;
+  std::string text = fmt::format("[{}{}]{}", std::string(filled, '#'),
+                                 std::string(bar_width - filled, '.'), tail);
   if (static_cast<int>(text.size()) >= width) text.resize(std::max(0, width - 1));
   return text;
 }
