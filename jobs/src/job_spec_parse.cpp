@@ -18,6 +18,7 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 namespace calib {
 namespace {
@@ -290,6 +291,46 @@ std::vector<ParameterSetting> ReadParameters(MapReader& top, const std::vector<P
   return out;
 }
 
+/// The byte offset of the first byte of `text` that breaks UTF-8 (an
+/// overlong form, a surrogate, past U+10FFFF, a stray or missing
+/// continuation byte), or npos when it is all UTF-8.
+size_t FirstNonUtf8(std::string_view text) {
+  const auto byte = [&](size_t i) { return static_cast<unsigned char>(text[i]); };
+  size_t i = 0;
+  while (i < text.size()) {
+    const unsigned char c = byte(i);
+    if (c < 0x80) {
+      ++i;
+      continue;
+    }
+    // Lead byte: the sequence length and the range of its second byte
+    // (Unicode 15, table 3-7).
+    size_t length = 0;
+    unsigned char low = 0x80;
+    unsigned char high = 0xBF;
+    if (c >= 0xC2 && c <= 0xDF) {
+      length = 2;
+    } else if (c >= 0xE0 && c <= 0xEF) {
+      length = 3;
+      if (c == 0xE0) low = 0xA0;
+      if (c == 0xED) high = 0x9F;
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      length = 4;
+      if (c == 0xF0) low = 0x90;
+      if (c == 0xF4) high = 0x8F;
+    } else {
+      return i;
+    }
+    if (i + length > text.size()) return i;
+    if (byte(i + 1) < low || byte(i + 1) > high) return i;
+    for (size_t k = 2; k < length; ++k) {
+      if (byte(i + k) < 0x80 || byte(i + k) > 0xBF) return i;
+    }
+    i += length;
+  }
+  return std::string_view::npos;
+}
+
 }  // namespace
 
 JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
@@ -487,6 +528,13 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
 
 JobSpec ParseJobSpec(const std::string& text, const std::string& source,
                      const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+  // Its strings end up in JSON (the store keeps the spec as JSON; optimiser
+  // settings are JSON), which must be UTF-8.
+  if (const size_t at = FirstNonUtf8(text); at != std::string_view::npos) {
+    const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<ptrdiff_t>(at), '\n');
+    throw JobSpecError(fmt::format("{}: not UTF-8 text: byte {} (0x{:02X}) on line {}", source, at,
+                                   static_cast<unsigned char>(text[at]), line));
+  }
   YAML::Node root;
   try {
     root = YAML::Load(text);

@@ -194,6 +194,40 @@ TEST(JobSpec, InvalidYamlIsNamed) {
   }
 }
 
+// Found by fuzz/fuzz_job_spec (scripts/fuzz.sh): a byte that is not UTF-8 in
+// an optimiser setting escaped as nlohmann::json::type_error (the setting's
+// message writes the settings as JSON); in a path it gave an accepted spec
+// whose canonical JSON (ToJson, kept by the store) cannot be written.
+TEST(JobSpec, TextThatIsNotUtf8IsNamed) {
+  const fs::path dir = MakeJobFolder("job_spec_utf8");
+  const auto edited = [](const std::string& from, const std::string& to) {
+    std::string text = kValidSpec;
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return text.replace(at, from.size(), to);
+  };
+  const std::string setting = edited("population: 6", "population: 6      \xA0");
+  try {
+    ParseJobSpec(setting, "job.yaml", dir);
+    FAIL() << "no error";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "job.yaml: not UTF-8 text: byte 603 (0xA0) on line 23");
+  }
+  for (const std::string& bad : {edited("train: [rec_a]", "train: [\"rec_\xFF\"]"),
+                                 std::string(kValidSpec) + "# overlong \xE0\x80\xAF\n",
+                                 std::string(kValidSpec) + "# cut \xF0\x9F\x93"}) {
+    try {
+      ParseJobSpec(bad, "job.yaml", dir);
+      ADD_FAILURE() << "no error for: " << bad;
+    } catch (const JobSpecError& e) {
+      EXPECT_CONTAINS(e.what(), "job.yaml: not UTF-8 text: byte ");
+    }
+  }
+  // UTF-8 beyond ASCII is fine.
+  EXPECT_NO_THROW(ParseJobSpec(std::string(kValidSpec) + "# Gr\xC3\xB6\xC3\x9F" "e \xF0\x9F\x93\x8F\n",
+                               "job.yaml", dir));
+}
+
 TEST(JobSpec, MissingFieldIsNamed) {
   const std::string m = ErrorOf([](YAML::Node& r) { r.remove("budget"); });
   EXPECT_CONTAINS(m, "job.yaml: budget: missing");
