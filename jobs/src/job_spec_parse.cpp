@@ -19,6 +19,7 @@
 #include <set>
 #include <sstream>
 #include <string_view>
+#include <vector>
 
 namespace calib {
 namespace {
@@ -331,6 +332,36 @@ size_t FirstNonUtf8(std::string_view text) {
   return std::string_view::npos;
 }
 
+/// Aliases make a YAML document a graph: an alias inside its own anchor
+/// (`a: &x [*x]`) is a cycle, and aliases of aliases grow exponentially as a
+/// tree ("billion laughs"). Every reader of the spec walks it as a tree (the
+/// fields, their messages, optimiser settings as JSON), which would overflow
+/// the stack or never end: the document as a tree must stay small. Walked
+/// without recursion, so that a cycle is only counted.
+void CheckYamlSize(const YAML::Node& root, const std::string& source) {
+  constexpr size_t kMaxValues = 100000;
+  std::vector<YAML::Node> pending{root};
+  size_t values = 0;
+  while (!pending.empty()) {
+    const YAML::Node node = pending.back();
+    pending.pop_back();
+    if (++values > kMaxValues) {
+      throw JobSpecError(fmt::format(
+          "{}: holds more than {} values once its aliases are expanded (an alias inside its own "
+          "anchor, or aliases of aliases)",
+          source, kMaxValues));
+    }
+    if (node.IsSequence()) {
+      for (const YAML::Node& item : node) pending.push_back(item);
+    } else if (node.IsMap()) {
+      for (const auto& kv : node) {
+        pending.push_back(kv.first);
+        pending.push_back(kv.second);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
@@ -338,6 +369,7 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
                          const JobSpecParseOptions& options) {
   const ModelCatalog& catalog = options.catalog != nullptr ? *options.catalog : DefaultModelCatalog();
   if (!root.IsDefined() || root.IsNull()) throw JobSpecError(fmt::format("{}: empty job spec", source));
+  CheckYamlSize(root, source);
   JobSpec spec;
   spec.source = source;
   spec.base_dir = std::filesystem::absolute(base_dir).lexically_normal();

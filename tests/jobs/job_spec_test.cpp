@@ -228,6 +228,43 @@ TEST(JobSpec, TextThatIsNotUtf8IsNamed) {
                                "job.yaml", dir));
 }
 
+// Found by running fuzz/fuzz_job_spec on YAML aliases: an alias inside its
+// own anchor overflowed the stack (AddressSanitizer: stack-overflow, in the
+// message that shows the value), and aliases of aliases ("billion laughs")
+// ran past libFuzzer's 10 s timeout.
+TEST(JobSpec, AliasCyclesAndAliasBombsAreNamed) {
+  const fs::path dir = MakeJobFolder("job_spec_aliases");
+  std::string laughs = "  settings:\n    a0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n";
+  for (int i = 1; i < 9; ++i) {
+    laughs += "    a" + std::to_string(i) + ": &a" + std::to_string(i) + " [";
+    for (int k = 0; k < 10; ++k) laughs += (k ? ", *a" : "*a") + std::to_string(i - 1);
+    laughs += "]\n";
+  }
+  for (const std::string& bad :
+       {std::string("name: &a [*a]\n"), std::string("optimizer: {name: cmaes, settings: &s {x: *s}}\n"),
+        "optimizer:\n  name: cmaes\n" + laughs}) {
+    try {
+      ParseJobSpec(bad, "job.yaml", dir);
+      ADD_FAILURE() << "no error for: " << bad;
+    } catch (const JobSpecError& e) {
+      EXPECT_CONTAINS(e.what(), "job.yaml: holds more than 100000 values once its aliases are expanded");
+    }
+  }
+  // An alias used as a shorthand is fine.
+  std::string shared = kValidSpec;
+  shared.replace(shared.find("settings: {population: 6"), 9, "settings: &s");
+  shared += "unused_here: *s\n";
+  const std::string m = [&] {
+    try {
+      ParseJobSpec(shared, "job.yaml", dir);
+    } catch (const JobSpecError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  }();
+  EXPECT_CONTAINS(m, "unused_here");  // an unknown key, not the alias
+}
+
 TEST(JobSpec, MissingFieldIsNamed) {
   const std::string m = ErrorOf([](YAML::Node& r) { r.remove("budget"); });
   EXPECT_CONTAINS(m, "job.yaml: budget: missing");
