@@ -337,8 +337,10 @@ size_t FirstNonUtf8(std::string_view text) {
 /// tree ("billion laughs"). Every reader of the spec walks it as a tree (the
 /// fields, their messages, optimiser settings as JSON), which would overflow
 /// the stack or never end: the document as a tree must stay small. Walked
-/// without recursion, so that a cycle is only counted.
-void CheckYamlSize(const YAML::Node& root, const std::string& source) {
+/// without recursion, so that a cycle is only counted. Each value and key
+/// must be UTF-8 as read (JSON needs it): UTF-8 text is not enough, yaml-cpp
+/// reads a NUL byte and the byte after it as one byte that is not UTF-8.
+void CheckYamlValues(const YAML::Node& root, const std::string& source) {
   constexpr size_t kMaxValues = 100000;
   std::vector<YAML::Node> pending{root};
   size_t values = 0;
@@ -350,6 +352,11 @@ void CheckYamlSize(const YAML::Node& root, const std::string& source) {
           "{}: holds more than {} values once its aliases are expanded (an alias inside its own "
           "anchor, or aliases of aliases)",
           source, kMaxValues));
+    }
+    if (node.IsScalar() && FirstNonUtf8(node.Scalar()) != std::string_view::npos) {
+      throw JobSpecError(fmt::format("{}: line {}: a value or key is not UTF-8 once read as YAML "
+                                     "(a NUL byte in the text makes one)",
+                                     source, node.Mark().line + 1));
     }
     if (node.IsSequence()) {
       for (const YAML::Node& item : node) pending.push_back(item);
@@ -369,7 +376,7 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
                          const JobSpecParseOptions& options) {
   const ModelCatalog& catalog = options.catalog != nullptr ? *options.catalog : DefaultModelCatalog();
   if (!root.IsDefined() || root.IsNull()) throw JobSpecError(fmt::format("{}: empty job spec", source));
-  CheckYamlSize(root, source);
+  CheckYamlValues(root, source);
   JobSpec spec;
   spec.source = source;
   spec.base_dir = std::filesystem::absolute(base_dir).lexically_normal();

@@ -223,6 +223,15 @@ TEST(JobSpec, TextThatIsNotUtf8IsNamed) {
       EXPECT_CONTAINS(e.what(), "job.yaml: not UTF-8 text: byte ");
     }
   }
+  // Later, at 422 498 executions: UTF-8 text in which yaml-cpp reads a NUL
+  // byte and the one after it as 0xA0 (a key of optimizer.settings).
+  const std::string nul = edited("initial_sigma", std::string("initial\0_sigma", 14));
+  try {
+    ParseJobSpec(nul, "job.yaml", dir);
+    FAIL() << "no error";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "job.yaml: line 23: a value or key is not UTF-8 once read as YAML");
+  }
   // UTF-8 beyond ASCII is fine.
   EXPECT_NO_THROW(ParseJobSpec(std::string(kValidSpec) + "# Gr\xC3\xB6\xC3\x9F" "e \xF0\x9F\x93\x8F\n",
                                "job.yaml", dir));
