@@ -58,7 +58,10 @@ void Continue(CheckedOptimizer* opt, int64_t steps) {
     if (batch.empty()) {
       if (opt->asked_count() >= kBudget) return;
       batch = opt->Ask(static_cast<int>(std::min<int64_t>(4, kBudget - opt->asked_count())));
-      if (batch.empty()) return;
+      if (batch.empty()) {  // the runner's error too
+        throw std::logic_error(opt->name() +
+                               " proposed nothing, has nothing outstanding and is not done");
+      }
     }
     std::vector<Evaluation> results;
     for (const Candidate& c : batch) results.push_back(Evaluate(c));
