@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <sstream>
 
 namespace calib {
 namespace {
@@ -110,9 +111,15 @@ void ValidateParameters(const ParameterValues& values, const std::vector<Paramet
 
 ParameterValues LoadParameterFile(const std::filesystem::path& path,
                                   const std::vector<ParameterSpec>& specs) {
-  const std::string source = path.string();
-  std::ifstream in(path);
-  if (!in) throw ParameterError(fmt::format("{}: cannot open parameter file", source));
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ParameterError(fmt::format("{}: cannot open parameter file", path.string()));
+  std::stringstream text;
+  text << in.rdbuf();
+  return ParseParameterFile(text.str(), path.string(), specs);
+}
+
+ParameterValues ParseParameterFile(std::string_view text, const std::string& source,
+                                   const std::vector<ParameterSpec>& specs) {
   nlohmann::json doc;
   // JSON readers keep one of two equal keys silently: the parser's callback
   // sees every key of the top-level object and names a repeated one.
@@ -131,7 +138,7 @@ ParameterValues LoadParameterFile(const std::filesystem::path& path,
         return true;
       };
   try {
-    doc = nlohmann::json::parse(in, note_keys);
+    doc = nlohmann::json::parse(text, note_keys);
   } catch (const nlohmann::json::exception& e) {
     throw ParameterError(fmt::format("{}: invalid JSON: {}", source, e.what()));
   }

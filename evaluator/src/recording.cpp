@@ -12,6 +12,7 @@
 #include <limits>
 #include <map>
 #include <sstream>
+#include <string_view>
 #include <system_error>
 
 namespace calib {
@@ -155,20 +156,24 @@ void CheckRectInFrame(const fs::path& file, const std::string& key, const PixelR
   }
 }
 
-json ParseJsonFile(const fs::path& file) {
-  std::ifstream in(file);
+std::string ReadJsonFile(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
   if (!in) Fail(file, "cannot open file");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+/// Fills everything of `rec` that recording.json (`text`, read from `file`)
+/// holds; the roi is left empty when absent and the rectangles are checked
+/// against the frame later (CheckRects).
+void ReadMetadata(const fs::path& file, std::string_view text, Recording* rec, bool* has_roi) {
+  json doc;
   try {
-    return json::parse(in);
+    doc = json::parse(text);
   } catch (const json::exception& e) {
     Fail(file, fmt::format("invalid JSON: {}", e.what()));
   }
-}
-
-/// Fills everything of `rec` that recording.json holds; the roi is left
-/// empty when absent and the rectangles are checked against the frame later.
-void ReadMetadata(const fs::path& file, Recording* rec, bool* has_roi) {
-  const json doc = ParseJsonFile(file);
   if (!doc.is_object())
     Fail(file, fmt::format("top level must be an object, found {}", TypeName(doc)));
 
@@ -232,6 +237,20 @@ void ReadMetadata(const fs::path& file, Recording* rec, bool* has_roi) {
     }
   }
   if (const json* v = Optional(doc, "notes")) rec->notes = ReadString(file, "notes", *v);
+}
+
+/// The roi (the whole frame when recording.json gives none) and the clamps
+/// checked against the frame size.
+void CheckRects(const fs::path& file, bool has_roi, Recording* rec) {
+  if (has_roi) {
+    CheckRectInFrame(file, "roi", rec->roi, rec->frame_width, rec->frame_height);
+  } else {
+    rec->roi = PixelRect{0, 0, rec->frame_width, rec->frame_height};
+  }
+  for (size_t i = 0; i < rec->clamps.size(); ++i) {
+    CheckRectInFrame(file, fmt::format("clamps[{}]", i), rec->clamps[i], rec->frame_width,
+                     rec->frame_height);
+  }
 }
 
 // ---------------------------------------------------------------------------
@@ -312,7 +331,7 @@ std::string Trim(const std::string& s) {
   return s.substr(b, e - b + 1);
 }
 
-CsvTable ReadCsv(const fs::path& file) {
+std::string ReadTrackFile(const fs::path& file) {
   // Read whole: only a regular file of bounded size (not a device or a
   // pipe that never ends).
   std::error_code ec;
@@ -325,8 +344,10 @@ CsvTable ReadCsv(const fs::path& file) {
   if (!in) Fail(file, "cannot open file");
   std::stringstream buffer;
   buffer << in.rdbuf();
-  const std::string text = buffer.str();
+  return buffer.str();
+}
 
+CsvTable ParseCsv(const fs::path& file, std::string_view text) {
   csv_parser parser;
   if (csv_init(&parser, CSV_STRICT | CSV_STRICT_FINI) != 0) Fail(file, "cannot initialise libcsv");
   CsvState state;
@@ -410,8 +431,8 @@ int FindColumn(const CsvTable& table, const std::string& name) {
   return -1;
 }
 
-void ReadTrack(const fs::path& file, Recording* rec) {
-  const CsvTable table = ReadCsv(file);
+void ReadTrack(const fs::path& file, std::string_view text, Recording* rec) {
+  const CsvTable table = ParseCsv(file, text);
   for (size_t c = 0; c < table.header.size(); ++c) {
     for (size_t d = 0; d < c; ++d) {
       if (table.header[c] == table.header[d] && !table.header[c].empty()) {
@@ -510,19 +531,21 @@ Recording LoadRecording(const std::filesystem::path& folder) {
   const fs::path json_path = rec.folder / "recording.json";
 
   bool has_roi = false;
-  ReadMetadata(json_path, &rec, &has_roi);
+  ReadMetadata(json_path, ReadJsonFile(json_path), &rec, &has_roi);
   ReadVideoInfo(rec.video_path, &rec);
-  if (has_roi) {
-    CheckRectInFrame(json_path, "roi", rec.roi, rec.frame_width, rec.frame_height);
-  } else {
-    rec.roi = PixelRect{0, 0, rec.frame_width, rec.frame_height};
-  }
-  for (size_t i = 0; i < rec.clamps.size(); ++i) {
-    CheckRectInFrame(json_path, fmt::format("clamps[{}]", i), rec.clamps[i], rec.frame_width,
-                     rec.frame_height);
-  }
-  ReadTrack(rec.track_path, &rec);
+  CheckRects(json_path, has_roi, &rec);
+  ReadTrack(rec.track_path, ReadTrackFile(rec.track_path), &rec);
   return rec;
+}
+
+void ParseRecordingJson(std::string_view text, const std::filesystem::path& file, Recording* rec) {
+  bool has_roi = false;
+  ReadMetadata(file, text, rec, &has_roi);
+  CheckRects(file, has_roi, rec);
+}
+
+void ParseTrackCsv(std::string_view text, const std::filesystem::path& file, Recording* rec) {
+  ReadTrack(file, text, rec);
 }
 
 std::string RecordingDisplayName(const std::filesystem::path& folder) {

@@ -99,14 +99,22 @@ fs::path SegmentationCachePath(const fs::path& dir, uint64_t key) {
   return dir / name;
 }
 
+namespace {
+
+/// The size of a cache file of these dimensions; 0 for dimensions no file
+/// can have.
+uint64_t ExpectedBytes(int num_frames, int width, int height) {
+  if (num_frames < 0 || width < 0 || height < 0) return 0;
+  const uint64_t words_per_mask = (static_cast<uint64_t>(width) + 63) / 64 * height;
+  return kHeaderBytes + (words_per_mask * num_frames + 1) * sizeof(uint64_t);
+}
+
+}  // namespace
+
 bool ReadSegmentationCache(const fs::path& file, uint64_t key, int num_frames, int width,
                            int height, int origin_x, int origin_y, std::vector<BitMask>* masks) {
-  if (num_frames < 0 || width < 0 || height < 0) return false;
-  const int words_per_row = (width + 63) / 64;
-  const uint64_t words_per_mask = static_cast<uint64_t>(words_per_row) * height;
-  const uint64_t expected_bytes =
-      kHeaderBytes + (words_per_mask * num_frames + 1) * sizeof(uint64_t);
-
+  const uint64_t expected_bytes = ExpectedBytes(num_frames, width, height);
+  if (expected_bytes == 0) return false;
   std::error_code ec;
   const uint64_t size = fs::file_size(file, ec);
   if (ec || size != expected_bytes) return false;
@@ -114,6 +122,15 @@ bool ReadSegmentationCache(const fs::path& file, uint64_t key, int num_frames, i
   if (!in) return false;
   std::string bytes(expected_bytes, '\0');
   if (!in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()))) return false;
+  return DecodeSegmentationCache(bytes, key, num_frames, width, height, origin_x, origin_y, masks);
+}
+
+bool DecodeSegmentationCache(std::string_view bytes, uint64_t key, int num_frames, int width,
+                             int height, int origin_x, int origin_y, std::vector<BitMask>* masks) {
+  const uint64_t expected_bytes = ExpectedBytes(num_frames, width, height);
+  if (expected_bytes == 0 || bytes.size() != expected_bytes) return false;
+  const int words_per_row = (width + 63) / 64;
+  const uint64_t words_per_mask = static_cast<uint64_t>(words_per_row) * height;
 
   Header expected;
   expected.version = kSegmentationCacheVersion;

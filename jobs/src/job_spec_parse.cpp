@@ -18,6 +18,8 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <string_view>
+#include <vector>
 
 namespace calib {
 namespace {
@@ -290,6 +292,83 @@ std::vector<ParameterSetting> ReadParameters(MapReader& top, const std::vector<P
   return out;
 }
 
+/// The byte offset of the first byte of `text` that breaks UTF-8 (an
+/// overlong form, a surrogate, past U+10FFFF, a stray or missing
+/// continuation byte), or npos when it is all UTF-8.
+size_t FirstNonUtf8(std::string_view text) {
+  const auto byte = [&](size_t i) { return static_cast<unsigned char>(text[i]); };
+  size_t i = 0;
+  while (i < text.size()) {
+    const unsigned char c = byte(i);
+    if (c < 0x80) {
+      ++i;
+      continue;
+    }
+    // Lead byte: the sequence length and the range of its second byte
+    // (Unicode 15, table 3-7).
+    size_t length = 0;
+    unsigned char low = 0x80;
+    unsigned char high = 0xBF;
+    if (c >= 0xC2 && c <= 0xDF) {
+      length = 2;
+    } else if (c >= 0xE0 && c <= 0xEF) {
+      length = 3;
+      if (c == 0xE0) low = 0xA0;
+      if (c == 0xED) high = 0x9F;
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      length = 4;
+      if (c == 0xF0) low = 0x90;
+      if (c == 0xF4) high = 0x8F;
+    } else {
+      return i;
+    }
+    if (i + length > text.size()) return i;
+    if (byte(i + 1) < low || byte(i + 1) > high) return i;
+    for (size_t k = 2; k < length; ++k) {
+      if (byte(i + k) < 0x80 || byte(i + k) > 0xBF) return i;
+    }
+    i += length;
+  }
+  return std::string_view::npos;
+}
+
+/// Aliases make a YAML document a graph: an alias inside its own anchor
+/// (`a: &x [*x]`) is a cycle, and aliases of aliases grow exponentially as a
+/// tree ("billion laughs"). Every reader of the spec walks it as a tree (the
+/// fields, their messages, optimiser settings as JSON), which would overflow
+/// the stack or never end: the document as a tree must stay small. Walked
+/// without recursion, so that a cycle is only counted. Each value and key
+/// must be UTF-8 as read (JSON needs it): UTF-8 text is not enough, yaml-cpp
+/// reads a NUL byte and the byte after it as one byte that is not UTF-8.
+void CheckYamlValues(const YAML::Node& root, const std::string& source) {
+  constexpr size_t kMaxValues = 100000;
+  std::vector<YAML::Node> pending{root};
+  size_t values = 0;
+  while (!pending.empty()) {
+    const YAML::Node node = pending.back();
+    pending.pop_back();
+    if (++values > kMaxValues) {
+      throw JobSpecError(fmt::format(
+          "{}: holds more than {} values once its aliases are expanded (an alias inside its own "
+          "anchor, or aliases of aliases)",
+          source, kMaxValues));
+    }
+    if (node.IsScalar() && FirstNonUtf8(node.Scalar()) != std::string_view::npos) {
+      throw JobSpecError(fmt::format("{}: line {}: a value or key is not UTF-8 once read as YAML "
+                                     "(a NUL byte in the text makes one)",
+                                     source, node.Mark().line + 1));
+    }
+    if (node.IsSequence()) {
+      for (const YAML::Node& item : node) pending.push_back(item);
+    } else if (node.IsMap()) {
+      for (const auto& kv : node) {
+        pending.push_back(kv.first);
+        pending.push_back(kv.second);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
@@ -297,6 +376,7 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
                          const JobSpecParseOptions& options) {
   const ModelCatalog& catalog = options.catalog != nullptr ? *options.catalog : DefaultModelCatalog();
   if (!root.IsDefined() || root.IsNull()) throw JobSpecError(fmt::format("{}: empty job spec", source));
+  CheckYamlValues(root, source);
   JobSpec spec;
   spec.source = source;
   spec.base_dir = std::filesystem::absolute(base_dir).lexically_normal();
@@ -487,6 +567,13 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
 
 JobSpec ParseJobSpec(const std::string& text, const std::string& source,
                      const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+  // Its strings end up in JSON (the store keeps the spec as JSON; optimiser
+  // settings are JSON), which must be UTF-8.
+  if (const size_t at = FirstNonUtf8(text); at != std::string_view::npos) {
+    const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<ptrdiff_t>(at), '\n');
+    throw JobSpecError(fmt::format("{}: not UTF-8 text: byte {} (0x{:02X}) on line {}", source, at,
+                                   static_cast<unsigned char>(text[at]), line));
+  }
   YAML::Node root;
   try {
     root = YAML::Load(text);

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "state_util.h"
 
@@ -175,9 +176,51 @@ void CheckedOptimizer::RestoreState(const nlohmann::json& state) {
     for (const auto& o : state.at("outstanding")) {
       outstanding_.emplace(o.at("id").get<int64_t>(), internal::VectorFromJson(o.at("x")));
     }
+    CheckRestoredCounts();
   } catch (const std::exception& e) {
     throw std::invalid_argument(fmt::format("optimiser '{}' (dimension {}): cannot restore state: {}",
                                             name(), dimension(), e.what()));
+  }
+}
+
+// What the wrapper's own part of a restored state must satisfy, and that
+// the plug-in waits for exactly the outstanding candidates (found by
+// fuzz/fuzz_checkpoint: an NLopt state whose outstanding id was one already
+// told was taken, and the first Tell after the resume threw std::logic_error,
+// the plug-in-bug error, instead of the restore refusing the state).
+void CheckedOptimizer::CheckRestoredCounts() const {
+  if (next_id_ < 0 || told_count_ < 0 || failed_count_ < 0 || failed_count_ > told_count_ ||
+      told_count_ + static_cast<int64_t>(outstanding_.size()) != next_id_) {
+    throw std::invalid_argument(fmt::format(
+        "counts next_id = {}, told = {}, failed = {} and {} outstanding do not add up", next_id_,
+        told_count_, failed_count_, outstanding_.size()));
+  }
+  for (const auto& [id, x] : outstanding_) {
+    if (id < 0 || id >= next_id_) {
+      throw std::invalid_argument(
+          fmt::format("outstanding id {} is not one of the asked ids 0..{}", id, next_id_ - 1));
+    }
+    if (static_cast<int>(x.size()) != dimension()) {
+      throw std::invalid_argument(
+          fmt::format("outstanding id {} has {} coordinates", id, x.size()));
+    }
+    for (int i = 0; i < dimension(); ++i) {
+      if (!(x[i] >= bounds_.lower[i] && x[i] <= bounds_.upper[i])) {
+        throw std::invalid_argument(fmt::format(
+            "outstanding id {}: coordinate {} = {} is outside the bounds", id, i, x[i]));
+      }
+    }
+  }
+  if (std::optional<std::vector<int64_t>> awaited = plugin_->AwaitedIds()) {
+    std::vector<int64_t> ids;
+    for (const auto& entry : outstanding_) ids.push_back(entry.first);
+    std::sort(awaited->begin(), awaited->end());
+    if (ids != *awaited) {
+      throw std::invalid_argument(
+          fmt::format("outstanding ids [{}] are not the ones the optimiser's own state waits for "
+                      "([{}])",
+                      fmt::join(ids, ", "), fmt::join(*awaited, ", ")));
+    }
   }
 }
 

@@ -157,6 +157,10 @@ class NloptOptimizer final : public Optimizer {
   }
 
   bool Done() const override { return finished_ && !pending_; }
+  std::optional<std::vector<int64_t>> AwaitedIds() const override {
+    if (!pending_) return std::vector<int64_t>{};
+    return std::vector<int64_t>{static_cast<int64_t>(stored_.size())};
+  }
   std::string StopReason() const override { return Done() ? stop_reason_ : ""; }
 
   nlohmann::json SaveState() const override {

@@ -194,6 +194,86 @@ TEST(JobSpec, InvalidYamlIsNamed) {
   }
 }
 
+// Found by fuzz/fuzz_job_spec (scripts/fuzz.sh): a byte that is not UTF-8 in
+// an optimiser setting escaped as nlohmann::json::type_error (the setting's
+// message writes the settings as JSON); in a path it gave an accepted spec
+// whose canonical JSON (ToJson, kept by the store) cannot be written.
+TEST(JobSpec, TextThatIsNotUtf8IsNamed) {
+  const fs::path dir = MakeJobFolder("job_spec_utf8");
+  const auto edited = [](const std::string& from, const std::string& to) {
+    std::string text = kValidSpec;
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return text.replace(at, from.size(), to);
+  };
+  const std::string setting = edited("population: 6", "population: 6      \xA0");
+  try {
+    ParseJobSpec(setting, "job.yaml", dir);
+    FAIL() << "no error";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "job.yaml: not UTF-8 text: byte 603 (0xA0) on line 23");
+  }
+  for (const std::string& bad : {edited("train: [rec_a]", "train: [\"rec_\xFF\"]"),
+                                 std::string(kValidSpec) + "# overlong \xE0\x80\xAF\n",
+                                 std::string(kValidSpec) + "# cut \xF0\x9F\x93"}) {
+    try {
+      ParseJobSpec(bad, "job.yaml", dir);
+      ADD_FAILURE() << "no error for: " << bad;
+    } catch (const JobSpecError& e) {
+      EXPECT_CONTAINS(e.what(), "job.yaml: not UTF-8 text: byte ");
+    }
+  }
+  // Later, at 422 498 executions: UTF-8 text in which yaml-cpp reads a NUL
+  // byte and the one after it as 0xA0 (a key of optimizer.settings).
+  const std::string nul = edited("initial_sigma", std::string("initial\0_sigma", 14));
+  try {
+    ParseJobSpec(nul, "job.yaml", dir);
+    FAIL() << "no error";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "job.yaml: line 23: a value or key is not UTF-8 once read as YAML");
+  }
+  // UTF-8 beyond ASCII is fine.
+  EXPECT_NO_THROW(ParseJobSpec(std::string(kValidSpec) + "# Gr\xC3\xB6\xC3\x9F" "e \xF0\x9F\x93\x8F\n",
+                               "job.yaml", dir));
+}
+
+// Found by running fuzz/fuzz_job_spec on YAML aliases: an alias inside its
+// own anchor overflowed the stack (AddressSanitizer: stack-overflow, in the
+// message that shows the value), and aliases of aliases ("billion laughs")
+// ran past libFuzzer's 10 s timeout.
+TEST(JobSpec, AliasCyclesAndAliasBombsAreNamed) {
+  const fs::path dir = MakeJobFolder("job_spec_aliases");
+  std::string laughs = "  settings:\n    a0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n";
+  for (int i = 1; i < 9; ++i) {
+    laughs += "    a" + std::to_string(i) + ": &a" + std::to_string(i) + " [";
+    for (int k = 0; k < 10; ++k) laughs += (k ? ", *a" : "*a") + std::to_string(i - 1);
+    laughs += "]\n";
+  }
+  for (const std::string& bad :
+       {std::string("name: &a [*a]\n"), std::string("optimizer: {name: cmaes, settings: &s {x: *s}}\n"),
+        "optimizer:\n  name: cmaes\n" + laughs}) {
+    try {
+      ParseJobSpec(bad, "job.yaml", dir);
+      ADD_FAILURE() << "no error for: " << bad;
+    } catch (const JobSpecError& e) {
+      EXPECT_CONTAINS(e.what(), "job.yaml: holds more than 100000 values once its aliases are expanded");
+    }
+  }
+  // An alias used as a shorthand is fine.
+  std::string shared = kValidSpec;
+  shared.replace(shared.find("settings: {population: 6"), 9, "settings: &s");
+  shared += "unused_here: *s\n";
+  const std::string m = [&] {
+    try {
+      ParseJobSpec(shared, "job.yaml", dir);
+    } catch (const JobSpecError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  }();
+  EXPECT_CONTAINS(m, "unused_here");  // an unknown key, not the alias
+}
+
 TEST(JobSpec, MissingFieldIsNamed) {
   const std::string m = ErrorOf([](YAML::Node& r) { r.remove("budget"); });
   EXPECT_CONTAINS(m, "job.yaml: budget: missing");

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "calib/search/factory.h"
 #include "harness.h"
 
 namespace calib::search {
@@ -111,6 +112,53 @@ TEST(CheckedOptimizer, BestTiesGoToTheLowestIdWhateverTheArrivalOrder) {
   opt.Tell(Evaluation{2, c[2].x, 1.0, false});
   opt.Tell(Evaluation{1, c[1].x, 1.0, false});
   EXPECT_EQ(opt.Best()->id, 1);
+}
+
+// Found by fuzz/fuzz_checkpoint: an NLopt checkpoint whose outstanding id
+// was one already told (3 -> 1) was restored, and the resumed run's first
+// Tell threw std::logic_error (a plug-in bug) instead of the restore
+// refusing the state with std::invalid_argument.
+TEST(CheckedOptimizer, RestoreRefusesAStateWhosePartsDisagree) {
+  const auto saved = [] {
+    CheckedOptimizer opt = MakeOptimizer("nlopt:SBPLX", nlohmann::json{{"maxeval", 48}},
+                                         testing::Box(2, 0, 1), 7);
+    for (int i = 0; i < 3; ++i) {
+      const std::vector<Candidate> c = opt.Ask(1);
+      opt.Tell(testing::Evaluate(testing::Sphere, c.at(0)));
+    }
+    (void)opt.Ask(1);
+    return opt.SaveState();
+  }();
+  ASSERT_EQ(saved.at("outstanding").at(0).at("id"), 3);
+  const auto error_of = [](const nlohmann::json& state) {
+    CheckedOptimizer fresh = MakeOptimizer("nlopt:SBPLX", nlohmann::json{{"maxeval", 48}},
+                                           testing::Box(2, 0, 1), 7);
+    try {
+      fresh.RestoreState(state);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("(restored)");
+  };
+  EXPECT_EQ(error_of(saved), "(restored)");
+  nlohmann::json told_id = saved;
+  told_id["outstanding"][0]["id"] = 1;
+  EXPECT_NE(error_of(told_id).find(
+                "outstanding ids [1] are not the ones the optimiser's own state waits for ([3])"),
+            std::string::npos)
+      << error_of(told_id);
+  nlohmann::json none = saved;  // NLopt waits for id 3, the wrapper for nothing
+  none["outstanding"] = nlohmann::json::array();
+  none["next_id"] = 3;
+  EXPECT_NE(error_of(none).find("outstanding ids [] are not the ones"), std::string::npos)
+      << error_of(none);
+  nlohmann::json counts = saved;
+  counts["told"] = 2;
+  EXPECT_NE(error_of(counts).find("do not add up"), std::string::npos) << error_of(counts);
+  nlohmann::json outside = saved;
+  outside["outstanding"][0]["x"][1] = 1.5;
+  EXPECT_NE(error_of(outside).find("coordinate 1 = 1.5 is outside the bounds"), std::string::npos)
+      << error_of(outside);
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace calib {
@@ -117,6 +118,11 @@ void ValidateParameters(const ParameterValues& values, const std::vector<Paramet
 /// non-numeric values, and names missing from or unknown to `specs`.
 ParameterValues LoadParameterFile(const std::filesystem::path& path,
                                   const std::vector<ParameterSpec>& specs);
+
+/// LoadParameterFile on the file's text in memory (tests, fuzz/); `source`
+/// names it in messages.
+ParameterValues ParseParameterFile(std::string_view text, const std::string& source,
+                                   const std::vector<ParameterSpec>& specs);
 
 /// Writes a parameter file that LoadParameterFile reads back exactly.
 void SaveParameterFile(const std::filesystem::path& path, const ParameterValues& values);

@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace calib {
@@ -73,6 +74,20 @@ struct Recording {
 /// force columns when force_obstacle is set, a force_obstacle that names no
 /// obstacle, a roi or clamp outside the frame.
 Recording LoadRecording(const std::filesystem::path& folder);
+
+/// LoadRecording's reading of recording.json, on its text in memory (tests,
+/// the fuzz targets in fuzz/). rec->folder must be set (the video and track
+/// paths are resolved and must stay inside it) and so must the frame size
+/// (the roi and clamps are checked against it; the roi defaults to the whole
+/// frame). `file` names the text in messages. Throws RecordingError as
+/// LoadRecording does.
+void ParseRecordingJson(std::string_view text, const std::filesystem::path& file, Recording* rec);
+
+/// LoadRecording's reading of track.csv, on its text in memory: fills
+/// rec->obstacles and rec->forces. rec's num_frames, frame size,
+/// force_obstacle and video_path (named in messages) must be set. Throws
+/// RecordingError as LoadRecording does.
+void ParseTrackCsv(std::string_view text, const std::filesystem::path& file, Recording* rec);
 
 /// The name a recording goes by in reports, logs and output folders: the
 /// name of its folder, whichever way the folder is written ("push_centre" for

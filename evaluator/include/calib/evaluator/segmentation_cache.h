@@ -43,6 +43,10 @@ bool ReadSegmentationCache(const std::filesystem::path& file, uint64_t key, int 
                            int width, int height, int origin_x, int origin_y,
                            std::vector<BitMask>* masks);
 
+/// ReadSegmentationCache on the file's bytes in memory (tests, fuzz/).
+bool DecodeSegmentationCache(std::string_view bytes, uint64_t key, int num_frames, int width,
+                             int height, int origin_x, int origin_y, std::vector<BitMask>* masks);
+
 /// Writes `masks` (all of one shape) under `key` atomically: to a temporary
 /// file in the same folder, then renamed over `file`; creates the folder.
 /// False when it could not be written (the cache is then left as it was).

@@ -66,6 +66,10 @@ class CheckedOptimizer {
   void RestoreState(const nlohmann::json& state);
 
  private:
+  // Throws std::invalid_argument when a restored state's counts, outstanding
+  // ids and points disagree with each other, the bounds or the plug-in.
+  void CheckRestoredCounts() const;
+
   std::unique_ptr<Optimizer> plugin_;
   Bounds bounds_;
   int64_t next_id_ = 0;

@@ -28,6 +28,8 @@
 //    that does not belong to it (RestoreState).
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -52,6 +54,12 @@ class Optimizer {
   virtual std::string StopReason() const = 0;
   virtual nlohmann::json SaveState() const = 0;
   virtual void RestoreState(const nlohmann::json& state) = 0;
+  // The ids this optimiser waits for results of (asked, not yet told),
+  // where its state says; nullopt (the default) where it does not. The
+  // checked wrapper compares them with the outstanding candidates of a
+  // restored state, so that a state whose parts disagree is refused by
+  // RestoreState instead of failing at the next Ask or Tell.
+  virtual std::optional<std::vector<int64_t>> AwaitedIds() const { return std::nullopt; }
 };
 
 }  // namespace calib::search
