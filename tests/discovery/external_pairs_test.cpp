@@ -35,8 +35,9 @@ std::string TrueEffect(const fs::path& recording) {
 // model).
 std::vector<std::string> EffectsOn(const fs::path& recording) {
   std::ifstream in(recording / "truth.json");
+  const nlohmann::json truth = nlohmann::json::parse(in);  // outlives the loop
   std::vector<std::string> out;
-  for (const auto& e : nlohmann::json::parse(in).at("effects_on")) {
+  for (const auto& e : truth.at("effects_on")) {
     const std::string name = e.get<std::string>();
     if (name == "table_friction") {
       out.push_back("table_friction");
