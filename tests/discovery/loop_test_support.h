@@ -44,7 +44,7 @@ inline std::vector<std::string> TrueEffects(const std::filesystem::path& recordi
 }
 
 /// Loop options for a test: the budgets the loop needs on a 330-frame
-/// recording (one to two minutes on two cores), one effect at most, no HTML.
+/// recording (5-25 minutes on two cores), one effect at most, no HTML.
 inline LoopOptions TestLoopOptions(const std::vector<std::filesystem::path>& train,
                                    const std::vector<std::filesystem::path>& holdout,
                                    const std::string& scratch_name) {
