@@ -97,6 +97,11 @@ class Cmaes final : public Optimizer {
   bool Done() const override { return !stop_reason_.empty() && batch_.size() == 0; }
   std::string StopReason() const override { return Done() ? stop_reason_ : ""; }
 
+  std::optional<std::vector<int64_t>> AwaitedIds() const override { return batch_.AwaitedIds(); }
+  std::optional<IdCounts> Counts() const override {
+    return IdCounts{batch_.AskedTotal(), batch_.ToldTotal()};
+  }
+
   nlohmann::json SaveState() const override {
     return {{"rng", rng_.Save()},     {"generation", generation_}, {"evals", evals_},
             {"mean", ToJson(mean_)},  {"sigma", internal::DoubleToJson(sigma_)},
