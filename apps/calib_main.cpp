@@ -140,7 +140,7 @@ int main(int argc, char** argv) {
   compare->add_option("--csv", compare_csv, "also write the per-frame difference here");
   AddCacheOptions(compare, &cache_dir, &no_cache);
 
-  const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best
+  const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best, validate
   const auto loop_cli = calib::cli::AddLoopSubcommand(app);
   const auto benchmark_cli = calib::cli::AddLoopBenchmarkSubcommand(app);
 
