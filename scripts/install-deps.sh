@@ -13,6 +13,7 @@ packages=(
   libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libsqlite3-dev sqlite3
+  libcpp-httplib-dev
   libcsv-dev
   libopenmpi-dev openmpi-bin
   gnuplot-nox
