@@ -161,7 +161,11 @@ nlohmann::json JobService::Submit(const nlohmann::json& request) {
                                      kSpecSource, spec.name));
     }
   }
-  queue_.Add(spec.name, ToJson(spec), priority, false);
+  try {
+    queue_.Add(spec.name, ToJson(spec), priority, false);
+  } catch (const StoreError& e) {  // submitted at the same moment by another request
+    throw ServiceError(409, "spec", e.what());
+  }
   wake_.notify_all();
   return {{"name", spec.name}, {"state", "queued"}, {"priority", priority}, {"notices", notices}};
 }
