@@ -4,6 +4,8 @@
 //  - jobs submitted over HTTP and through `calib submit` run to the end and
 //    give the histories `calib run` gives; status, results, best and
 //    artefacts answer; `calib jobs --server` and `calib status` list them;
+//  - a running job cancelled (calib cancel) and resumed over HTTP ends with
+//    the uninterrupted history;
 //  - a server killed with SIGKILL in the middle of two running jobs and one
 //    queued: restarted, every job ends with the uninterrupted history; a
 //    SIGTERM stops it gracefully and the job it ran continues at the next
@@ -316,6 +318,37 @@ TEST_F(Service, KilledMidJobsAndRestartedEveryJobEndsWithTheUninterruptedHistory
   Server server(dir / "state", dir / "logs3", {"--no-report"});
   EXPECT_EQ(server.WaitDone("term")["status"], "finished");
   testing::ExpectSameHistory(Reference(3, 16), History(server.store(), "term"), "term");
+}
+
+TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUninterruptedHistory) {
+  const fs::path dir = testing::ScratchDir("service_cancel");
+  Server server(dir / "state", dir / "logs", {"--no-report"});
+  ASSERT_GT(server.port(), 0);
+  server.Submit(JobYaml("cancelled", 3, 16));
+  server.WaitEvaluations("cancelled", 5);
+  const testing::ProcessResult cancel = testing::RunProcess(
+      {kCalib, "cancel", "cancelled", "--server", server.url(), "--token-file",
+       (dir / "state" / "token").string()},
+      dir / "logs");
+  EXPECT_EQ(cancel.exit_code, 0) << cancel.err;
+  EXPECT_CONTAINS(cancel.out, "state: cancelling");
+  const nlohmann::json stopped = server.WaitDone("cancelled");
+  EXPECT_EQ(stopped["state"], "cancelled") << stopped.dump();
+  EXPECT_EQ(stopped["status"], "stopped");
+  EXPECT_LT(stopped["evaluations"].get<int>(), 16) << "stopped before its end";
+
+  httplib::Client client = server.Client();
+  const httplib::Result resumed = client.Post("/api/v1/jobs/cancelled/resume", "", "application/json");
+  ASSERT_TRUE(resumed);
+  EXPECT_EQ(resumed->status, 200) << resumed->body;
+  const nlohmann::json done = server.WaitDone("cancelled");
+  EXPECT_EQ(done["status"], "finished") << done.dump();
+  EXPECT_EQ(done["runs"].size(), 2u) << "the run and the resume";
+  testing::ExpectSameHistory(Reference(3, 16), History(server.store(), "cancelled"), "cancelled and resumed");
+  const httplib::Result again = client.Post("/api/v1/jobs/cancelled/resume", "", "application/json");
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->status, 200) << "a finished job may be queued again: nothing to do";
+  EXPECT_EQ(server.WaitDone("cancelled")["evaluations"], 16);
 }
 
 TEST_F(Service, BadRequestsGetTheir4xxNamingTheFieldAndTheServerAnswersOn) {
