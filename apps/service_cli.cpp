@@ -215,6 +215,11 @@ std::shared_ptr<ServiceCli> AddServiceSubcommands(CLI::App& app) {
   serve->add_option("--max-body", cli->http.max_body_bytes, "largest request body, bytes")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  serve->add_option("--report-max-age", cli->service.report_max_age_s,
+                    "seconds a finished or cancelled job's report is kept after the job last "
+                    "changed (its results stay in the store); 0: until the job is deleted")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   serve->add_flag("--no-report", cli->no_report,
                   "write no report (best parameters, overlays, summary) when a job stops");
   serve->add_flag("--no-video", cli->no_video, "write job reports without overlay videos");

@@ -50,6 +50,11 @@ bool ServiceOptions::IsValid(std::string* error) const {
     *error = fmt::format("ServiceOptions::concurrent_jobs = {}. Violated: >= 1", concurrent_jobs);
     return false;
   }
+  if (!(report_max_age_s >= 0.0)) {
+    *error = fmt::format("ServiceOptions::report_max_age_s = {}. Violated: >= 0 (0: kept)",
+                         report_max_age_s);
+    return false;
+  }
   if (threads_per_job < 0) {
     *error = fmt::format("ServiceOptions::threads_per_job = {}. Violated: >= 0 (0: all cores)",
                          threads_per_job);
@@ -73,7 +78,9 @@ JobService::JobService(ServiceOptions options)
                  "their checkpoints",
                  requeued);
   }
-  for (int i = 0; i < options_.concurrent_jobs; ++i) workers_.emplace_back([this] { Worker(); });
+  for (int i = 0; i < options_.concurrent_jobs; ++i) {
+    workers_.emplace_back([this, i] { Worker(i == 0); });
+  }
 }
 
 JobService::~JobService() { Stop(); }
@@ -296,8 +303,37 @@ fs::path JobService::Artefact(const std::string& name, const std::string& relati
   return path;
 }
 
-void JobService::Worker() {
+void JobService::PruneReports() {
+  const double now = std::chrono::duration<double>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count();
+  StoreOptions read_only;
+  read_only.read_only = true;
+  const ResultStore store(options_.store(), read_only);
+  for (const QueueEntry& entry : queue_.Entries()) {
+    if (entry.state != QueueState::kDone && entry.state != QueueState::kCancelled) continue;
+    const fs::path folder = options_.reports() / entry.name;
+    std::error_code ec;
+    if (!fs::exists(folder, ec)) continue;
+    const std::optional<JobInfo> job = store.FindJob(entry.name);
+    if (job && now - job->updated_unix_s > options_.report_max_age_s) {
+      fs::remove_all(folder, ec);
+      spdlog::info("job '{}': report {} deleted, {:.0f} s after the job last changed "
+                   "(--report-max-age); its results stay in the store",
+                   entry.name, folder.string(), now - job->updated_unix_s);
+    }
+  }
+}
+
+void JobService::Worker(bool prunes) {
   while (!stopping_) {
+    if (prunes && options_.report_max_age_s > 0.0) {
+      try {
+        PruneReports();
+      } catch (const std::exception& e) {
+        spdlog::error("pruning reports: {}", e.what());
+      }
+    }
     std::optional<QueueEntry> entry;
     try {
       entry = queue_.ClaimNext();

@@ -6,6 +6,7 @@
 //    artefacts answer; `calib jobs --server` and `calib status` list them;
 //  - a running job cancelled (calib cancel) and resumed over HTTP ends with
 //    the uninterrupted history;
+//  - a report is deleted past --report-max-age, and the results stay;
 //  - a server killed with SIGKILL in the middle of two running jobs and one
 //    queued: restarted, every job ends with the uninterrupted history; a
 //    SIGTERM stops it gracefully and the job it ran continues at the next
@@ -349,6 +350,23 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   ASSERT_TRUE(again);
   EXPECT_EQ(again->status, 200) << "a finished job may be queued again: nothing to do";
   EXPECT_EQ(server.WaitDone("cancelled")["evaluations"], 16);
+}
+
+TEST_F(Service, AReportIsDeletedPastItsAgeLimitAndTheResultsStay) {
+  const fs::path dir = testing::ScratchDir("service_report_age");
+  Server server(dir / "state", dir / "logs", {"--report-max-age", "4"});
+  ASSERT_GT(server.port(), 0);
+  server.Submit(JobYaml("aged", 3, 4));
+  EXPECT_EQ(server.WaitDone("aged")["status"], "finished");
+  EXPECT_FALSE(server.Get("/api/v1/jobs/aged/artefacts")["files"].empty()) << "the report, at first";
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  while (!server.Get("/api/v1/jobs/aged/artefacts")["files"].empty() && Clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  EXPECT_TRUE(server.Get("/api/v1/jobs/aged/artefacts")["files"].empty()) << "deleted past 4 s";
+  EXPECT_FALSE(fs::exists(dir / "state" / "jobs" / "aged"));
+  EXPECT_EQ(server.Get("/api/v1/jobs/aged/results")["evaluations"].size(), 4u) << "the results stay";
+  EXPECT_EQ(server.Get("/api/v1/jobs/aged/best")["parameters"].size(), 6u);
 }
 
 TEST_F(Service, BadRequestsGetTheir4xxNamingTheFieldAndTheServerAnswersOn) {

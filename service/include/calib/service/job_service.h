@@ -11,7 +11,8 @@
 // results.out_dir are ignored, with a notice in the answer.
 //
 // Workers take the queued job of highest priority, earliest submitted
-// first. A job stops resumably when cancelled or when the service stops
+// first. Reports are kept until their job is deleted, or for
+// report_max_age_s after the job last changed. A job stops resumably when cancelled or when the service stops
 // (Stop: it stays queued and continues at the next start); after a SIGKILL
 // the next start queues every job left running again, and each continues
 // from its last checkpoint to the history an uninterrupted run gives.
@@ -51,6 +52,10 @@ struct ServiceOptions {
   bool write_report = true;
   /// Overlay videos in the reports.
   bool report_video = true;
+  /// A finished or cancelled job's report folder is deleted this many
+  /// seconds after the job last changed (its results stay in the store);
+  /// 0: kept until the job is deleted.
+  double report_max_age_s = 0.0;
   /// Recorded with every run of a job ("calib 0.1.0").
   std::string program_version = "calib";
 
@@ -105,7 +110,9 @@ class JobService {
  private:
   JobSpec SpecOf(const nlohmann::json& canonical) const;
   QueueEntry Entry(const std::string& name) const;
-  void Worker();
+  void Worker(bool prunes);
+  /// Deletes the report folders past report_max_age_s.
+  void PruneReports();
   void RunEntry(const QueueEntry& entry);
 
   ServiceOptions options_;
