@@ -36,6 +36,32 @@ bool SameToken(const std::string& a, const std::string& b) {
   return diff == 0;
 }
 
+constexpr const char* kCookie = "calib_token";
+
+// Whether the Cookie header holds calib_token=TOKEN as one of its
+// "name=value" pairs (RFC 6265: separated by "; ").
+bool CookieHoldsToken(const std::string& header, const std::string& token) {
+  const std::string wanted = std::string(kCookie) + "=";
+  size_t start = 0;
+  while (start <= header.size()) {
+    size_t end = header.find(';', start);
+    if (end == std::string::npos) end = header.size();
+    size_t first = header.find_first_not_of(' ', start);
+    if (first < end && header.compare(first, wanted.size(), wanted) == 0) {
+      return SameToken(header.substr(first + wanted.size(), end - first - wanted.size()), token);
+    }
+    start = end + 1;
+  }
+  return false;
+}
+
+// What may be asked without the token: the dashboard's page and chart
+// library (no data in them) and the sign-in that checks the token.
+bool Open(const httplib::Request& req) {
+  return (req.method == "GET" && (req.path == "/" || req.path == "/dashboard/chart.umd.js")) ||
+         (req.method == "POST" && req.path == "/api/v1/session");
+}
+
 nlohmann::json BodyJson(const httplib::Request& req) {
   if (req.body.empty()) return nlohmann::json::object();
   try {
@@ -89,7 +115,9 @@ struct HttpApi::Impl {
     server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
       const std::string header = req.get_header_value("Authorization");
       const std::string prefix = "Bearer ";
-      if (header.rfind(prefix, 0) == 0 && SameToken(header.substr(prefix.size()), options.token)) {
+      if (Open(req) ||
+          (header.rfind(prefix, 0) == 0 && SameToken(header.substr(prefix.size()), options.token)) ||
+          CookieHoldsToken(req.get_header_value("Cookie"), options.token)) {
         return httplib::Server::HandlerResponse::Unhandled;
       }
       res.set_header("WWW-Authenticate", "Bearer");
@@ -130,6 +158,30 @@ struct HttpApi::Impl {
 
     const std::string jobs = "/api/v1/jobs";
     const std::string job = jobs + "/" + kName;
+    server.Get("/", [](const httplib::Request&, httplib::Response& res) {
+      const std::string_view page = DashboardPage();
+      res.set_header("Content-Security-Policy",
+                     "default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'unsafe-inline'");
+      res.set_content(page.data(), page.size(), "text/html; charset=utf-8");
+    });
+    server.Get("/dashboard/chart.umd.js", [](const httplib::Request&, httplib::Response& res) {
+      const std::string_view js = DashboardChartJs();
+      res.set_content(js.data(), js.size(), "text/javascript; charset=utf-8");
+    });
+    // The dashboard's sign-in: the token once, then an HttpOnly, SameSite
+    // Strict cookie that the browser sends with every request of the page.
+    server.Post("/api/v1/session", Guarded([this](const httplib::Request& req, httplib::Response& res) {
+                  const nlohmann::json body = BodyJson(req);
+                  if (!body.is_object() || !body.contains("token") || !body["token"].is_string()) {
+                    throw ServiceError(400, "token", "token: missing (the server's token, a string)");
+                  }
+                  if (!SameToken(body["token"].get<std::string>(), options.token)) {
+                    throw ServiceError(401, "token", "wrong token");
+                  }
+                  res.set_header("Set-Cookie", fmt::format("{}={}; HttpOnly; SameSite=Strict; Path=/",
+                                                           kCookie, options.token));
+                  Reply(res, 200, {{"signed_in", true}});
+                }));
     server.Get("/api/v1/health", Guarded([](const httplib::Request&, httplib::Response& res) {
                  Reply(res, 200, {{"status", "ok"}});
                }));

@@ -399,6 +399,31 @@ TEST_F(Service, BadRequestsGetTheir4xxNamingTheFieldAndTheServerAnswersOn) {
   expect(server.Client("").Get("/api/v1/jobs"), 401, "Authorization", "no token");
   expect(server.Client("not-the-token").Get("/api/v1/jobs"), 401, "Authorization", "wrong token");
   expect(server.Client("").Post("/api/v1/jobs", "{}", "application/json"), 401, "", "token");
+  // The dashboard: its page without the token; the sign-in sets the token
+  // as an HttpOnly, SameSite=Strict cookie that then stands for it.
+  {
+    httplib::Client anonymous = server.Client("");
+    const httplib::Result page = anonymous.Get("/");
+    ASSERT_TRUE(page);
+    EXPECT_EQ(page->status, 200);
+    EXPECT_CONTAINS(page->body, "<script src=\"/dashboard/chart.umd.js\">");
+    const httplib::Result chart = anonymous.Get("/dashboard/chart.umd.js");
+    ASSERT_TRUE(chart);
+    EXPECT_CONTAINS(chart->body, "Chart.js");
+    expect(anonymous.Post("/api/v1/session", R"({"token": "nope"})", "application/json"), 401, "token",
+           "wrong token");
+    const httplib::Result session = anonymous.Post(
+        "/api/v1/session", nlohmann::json{{"token", server.token()}}.dump(), "application/json");
+    ASSERT_TRUE(session);
+    EXPECT_EQ(session->status, 200) << session->body;
+    EXPECT_EQ(session->get_header_value("Set-Cookie"),
+              "calib_token=" + server.token() + "; HttpOnly; SameSite=Strict; Path=/");
+    const httplib::Headers with_cookie = {{"Cookie", "other=1; calib_token=" + server.token()}};
+    const httplib::Result listed = anonymous.Get("/api/v1/jobs", with_cookie);
+    ASSERT_TRUE(listed);
+    EXPECT_EQ(listed->status, 200) << "the cookie stands for the token";
+    expect(anonymous.Get("/api/v1/jobs", {{"Cookie", "calib_token=wrong"}}), 401, "Authorization", "no token");
+  }
   expect(post(std::string(10000, ' ')), 413, "body", "larger than the server accepts");
   expect(post("{\"spec\": "), 400, "body", "the body is not JSON");
   expect(post("[1, 2]"), 400, "", "must be a JSON object");

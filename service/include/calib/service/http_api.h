@@ -3,8 +3,10 @@
 // docs/openapi.yaml (served at /api/v1/openapi.yaml) and docs/service.md.
 //
 // Safe by default: it listens on the loopback address unless told
-// otherwise; every request carries the token (Authorization: Bearer TOKEN,
-// else 401); a body larger than max_body_bytes is refused (413); a body that
+// otherwise; every request to the API carries the token (Authorization:
+// Bearer TOKEN, or the dashboard's cookie, else 401; the dashboard's page
+// and chart library, which hold no data, and the sign-in that sets the
+// cookie are the exceptions); a body larger than max_body_bytes is refused (413); a body that
 // is not JSON (400), a bad spec (400, the message `calib run` gives), a path
 // out of the data roots (403), an unknown job (404) or a conflict (409) is
 // answered {"error": message, "field": the request field}; an unexpected
@@ -16,6 +18,7 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <string_view>
 
 namespace calib::service {
 
@@ -32,6 +35,10 @@ struct HttpOptions {
 
 /// The OpenAPI description (docs/openapi.yaml, compiled in).
 const char* OpenApiYaml();
+/// The dashboard's page (dashboard/index.html) and its chart library
+/// (Chart.js from npm), compiled in.
+std::string_view DashboardPage();
+std::string_view DashboardChartJs();
 
 class HttpApi {
  public:
