@@ -60,6 +60,10 @@ std::string BudgetSetting(std::string_view name_view) {
   return IsNlopt(name) ? "maxeval" : "";
 }
 
+bool BudgetExtendsExactly(std::string_view name) {
+  return name == "random" || name == "cmaes" || name == "genetic";
+}
+
 nlohmann::json WithBudget(std::string_view name, nlohmann::json settings, int64_t evaluations) {
   if (settings.is_null()) settings = nlohmann::json::object();
   const std::string key = BudgetSetting(name);
