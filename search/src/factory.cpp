@@ -60,6 +60,13 @@ std::string BudgetSetting(std::string_view name_view) {
   return IsNlopt(name) ? "maxeval" : "";
 }
 
+bool SeedIndependent(std::string_view name) {
+  static const char* const kNames[] = {"grid",         "nlopt:BOBYQA", "nlopt:COBYLA",
+                                       "nlopt:NELDERMEAD", "nlopt:SBPLX", "nlopt:DIRECT",
+                                       "nlopt:DIRECT_L", "nlopt:MLSL"};
+  return std::find(std::begin(kNames), std::end(kNames), name) != std::end(kNames);
+}
+
 nlohmann::json WithBudget(std::string_view name, nlohmann::json settings, int64_t evaluations) {
   if (settings.is_null()) settings = nlohmann::json::object();
   const std::string key = BudgetSetting(name);

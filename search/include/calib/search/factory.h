@@ -34,6 +34,12 @@ std::vector<std::string> OptimizerNames();
 // where it has none (genetic: population x generations).
 std::string BudgetSetting(std::string_view name);
 
+// Whether optimiser `name` ignores its seed: the same candidates whatever
+// the seed (grid; NLopt's BOBYQA, COBYLA, NELDERMEAD, SBPLX from their x0,
+// DIRECT, DIRECT_L, and MLSL on its low-discrepancy sequence). A comparison runs such an optimiser once rather than
+// once per seed.
+bool SeedIndependent(std::string_view name);
+
 // `settings` (an object, or null for none) with BudgetSetting(name) set to
 // `evaluations` where the settings leave it out.
 nlohmann::json WithBudget(std::string_view name, nlohmann::json settings, int64_t evaluations);
