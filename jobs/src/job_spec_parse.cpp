@@ -25,6 +25,7 @@ namespace calib {
 namespace {
 
 using spec_reader::MapReader;
+using spec_reader::ValidName;
 using spec_reader::Show;
 using spec_reader::YamlToJson;
 
@@ -60,13 +61,6 @@ class SpecErrors {
  private:
   std::vector<std::string> messages_;
 };
-
-bool ValidName(const std::string& name) {
-  if (name.empty()) return false;
-  return std::all_of(name.begin(), name.end(), [](char c) {
-    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
-  });
-}
 
 std::filesystem::path Resolve(const std::filesystem::path& base, const std::string& written) {
   return (base / std::filesystem::path(written)).lexically_normal();
@@ -565,8 +559,16 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
   return spec;
 }
 
-JobSpec ParseJobSpec(const std::string& text, const std::string& source,
-                     const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+namespace spec_reader {
+
+bool ValidName(const std::string& name) {
+  if (name.empty()) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+  });
+}
+
+YAML::Node LoadSpecYaml(const std::string& text, const std::string& source) {
   // Its strings end up in JSON (the store keeps the spec as JSON; optimiser
   // settings are JSON), which must be UTF-8.
   if (const size_t at = FirstNonUtf8(text); at != std::string_view::npos) {
@@ -580,7 +582,23 @@ JobSpec ParseJobSpec(const std::string& text, const std::string& source,
   } catch (const YAML::Exception& e) {
     throw JobSpecError(fmt::format("{}: not valid YAML or JSON: {}", source, e.what()));
   }
-  return ParseJobSpecYaml(root, source, base_dir, options);
+  if (root.IsDefined() && !root.IsNull()) CheckYamlValues(root, source);
+  return root;
+}
+
+std::string ReadSpecFile(const std::filesystem::path& path, const char* what) {
+  std::ifstream in(path);
+  if (!in) throw JobSpecError(fmt::format("{}: cannot open {}", path.string(), what));
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+}  // namespace spec_reader
+
+JobSpec ParseJobSpec(const std::string& text, const std::string& source,
+                     const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+  return ParseJobSpecYaml(spec_reader::LoadSpecYaml(text, source), source, base_dir, options);
 }
 
 JobSpec ParseJobSpec(const nlohmann::json& doc, const std::string& source,
@@ -590,12 +608,9 @@ JobSpec ParseJobSpec(const nlohmann::json& doc, const std::string& source,
 }
 
 JobSpec LoadJobSpec(const std::filesystem::path& path, const JobSpecParseOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw JobSpecError(fmt::format("{}: cannot open job spec", path.string()));
-  std::stringstream text;
-  text << in.rdbuf();
+  const std::string text = spec_reader::ReadSpecFile(path, "job spec");
   const std::filesystem::path base = std::filesystem::absolute(path).parent_path();
-  return ParseJobSpec(text.str(), path.string(), base, options);
+  return ParseJobSpec(text, path.string(), base, options);
 }
 
 void CheckRecordings(const JobSpec& spec) {
