@@ -30,7 +30,7 @@ std::vector<ComparedOptimizer> ReadOptimizers(MapReader& top) {
   if (!list.IsSequence() || list.size() == 0) {
     top.Fail("optimizers", list, "expected a non-empty list of optimisers ({name, label, settings})");
   }
-  const std::vector<std::string> names = search::OptimizerNames();
+  const std::vector<std::string> names = search::AllOptimizerNames();
   std::vector<ComparedOptimizer> out;
   std::set<std::string> labels;
   for (size_t i = 0; i < list.size(); ++i) {
@@ -55,12 +55,7 @@ std::vector<ComparedOptimizer> ReadOptimizers(MapReader& top) {
       o.Fail(path + ".label", YAML::Node(c.label),
              "another optimiser has this label; give each a distinct `label`");
     }
-    const YAML::Node settings = o.Get("settings");
-    if (settings.IsDefined() && !settings.IsNull()) {
-      if (!settings.IsMap()) o.Fail(path + ".settings", settings, "expected a map of settings");
-      (void)o.Nested(settings, path + ".settings");
-      c.settings = spec_reader::YamlToJson(settings);
-    }
+    c.settings = spec_reader::ReadOptimizerSettings(o, path, c.name);
     c.seed_independent = search::SeedIndependent(c.name);
     o.Finish();
     out.push_back(std::move(c));

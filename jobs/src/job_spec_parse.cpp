@@ -443,20 +443,13 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
 
   const bool optimizer_read = errors.Check([&] {
     MapReader o(top.Require("optimizer", "a map with name and settings"), "optimizer", &spec.source);
-    const std::vector<std::string> names = search::OptimizerNames();
+    const std::vector<std::string> names = search::AllOptimizerNames();
     const YAML::Node n = o.Require("name", fmt::format("one of {}", fmt::join(names, ", ")));
     spec.optimizer.name = o.String("name", n);
     if (std::find(names.begin(), names.end(), spec.optimizer.name) == names.end()) {
       o.Fail("optimizer.name", n, fmt::format("unknown optimiser; one of {}", fmt::join(names, ", ")));
     }
-    const YAML::Node settings = o.Get("settings");
-    if (settings.IsDefined() && !settings.IsNull()) {
-      if (!settings.IsMap()) o.Fail("optimizer.settings", settings, "expected a map of settings");
-      // The optimiser checks the names; the reader names a repeated one,
-      // which the conversion to JSON would keep silently.
-      (void)o.Nested(settings, "optimizer.settings");
-      spec.optimizer.settings = YamlToJson(settings);
-    }
+    spec.optimizer.settings = spec_reader::ReadOptimizerSettings(o, "optimizer", spec.optimizer.name);
     o.Finish();
   });
   // The optimiser is made with the budget and the search space.
@@ -584,6 +577,25 @@ YAML::Node LoadSpecYaml(const std::string& text, const std::string& source) {
   }
   if (root.IsDefined() && !root.IsNull()) CheckYamlValues(root, source);
   return root;
+}
+
+nlohmann::json ReadOptimizerSettings(yaml_reader::MapReader& o, const std::string& path, const std::string& name) {
+  nlohmann::json out = nlohmann::json::object();
+  const YAML::Node settings = o.Get("settings");
+  if (settings.IsDefined() && !settings.IsNull()) {
+    if (!settings.IsMap()) o.Fail(path + ".settings", settings, "expected a map of settings");
+    // The optimiser checks the names; the reader names a repeated one,
+    // which the conversion to JSON would keep silently.
+    (void)o.Nested(settings, path + ".settings");
+    out = YamlToJson(settings);
+  }
+  if (o.Has("command")) {
+    const YAML::Node command = o.Get("command");
+    if (name != "external") o.Fail(path + ".command", command, "only an external optimiser runs a command");
+    if (out.contains("command")) o.Fail(path + ".command", command, "given twice: here and in settings");
+    out["command"] = YamlToJson(command);
+  }
+  return out;
 }
 
 std::string ReadSpecFile(const std::filesystem::path& path, const char* what) {

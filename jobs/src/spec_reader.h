@@ -34,6 +34,10 @@ YAML::Node LoadSpecYaml(const std::string& text, const std::string& source);
 /// The text of a spec file; JobSpecError "<path>: cannot open <what>".
 std::string ReadSpecFile(const std::filesystem::path& path, const char* what);
 
+/// An optimiser map's settings as JSON (`settings`, and `command` for an
+/// external optimiser, which goes into them); `path` names the map.
+nlohmann::json ReadOptimizerSettings(yaml_reader::MapReader& o, const std::string& path, const std::string& name);
+
 /// Throws JobSpecError(message).
 [[noreturn]] void RaiseJobSpecError(const std::string& message);
 

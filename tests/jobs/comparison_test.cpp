@@ -9,6 +9,7 @@
 
 #include "calib/jobs/comparison.h"
 #include "calib/results/gnuplot.h"
+#include "calib/search/external_optimizer.h"
 #include "jobs/job_test_support.h"
 #include "support/csv_support.h"
 #include "support/test_support.h"
@@ -112,6 +113,12 @@ const char* const kOptimizers = R"yaml(optimizers:
   - {name: grid, settings: {resolution: 3}}
 )yaml";
 
+const std::string kFakeExternal = std::string(CALIB_SOURCE_DIR) + "/tests/search/fake_external_optimizer.py";
+const std::string kExternalOptimizer = fmt::format(
+    "optimizers:\n  - {{name: external, label: fake, command: [/usr/bin/python3, '{}', good], "
+    "settings: {{batch: 4}}}}\n",
+    kFakeExternal);
+
 std::string ComparisonYaml(const std::string& keys, const std::string& optimizers = kOptimizers,
                            const std::string& budget = "budget: {evaluations: 40}\n") {
   // The runner fingerprints the recordings of every job (job_inputs.h):
@@ -149,6 +156,11 @@ TEST(ComparisonSpec, RunsEachOptimizerOncePerSeedAndSeedIndependentOnesOnce) {
   EXPECT_EQ(spec.budget_evaluations, 40);
   EXPECT_EQ(spec.targets.kind, TargetKind::kRelative);
 
+  const ComparisonSpec external = Parse(ComparisonYaml("seeds: 2\n", kExternalOptimizer), out);
+  ASSERT_EQ(external.runs.size(), 2u) << "an external optimiser runs once per seed";
+  EXPECT_EQ(external.runs[1].job.optimizer.settings["command"][2], "good") << "command goes into the settings";
+  EXPECT_EQ(external.runs[1].job.optimizer.settings["max_evals"], 40);
+
   const ComparisonSpec defaults = Parse(ComparisonYaml(""), out);
   EXPECT_EQ(defaults.seeds.size(), 15u) << "15 seeds by default";
   EXPECT_EQ(defaults.runs.size(), 15u + 15u + 1u + 1u);
@@ -170,6 +182,10 @@ TEST(ComparisonSpec, BadInputIsNamedByFileKeyAndValue) {
   EXPECT_CONTAINS(ErrorOf(ComparisonYaml("", "optimizers:\n  - {name: random, lable: r}\n")),
                   "optimizers[0].lable = 'r': unknown key");
   EXPECT_CONTAINS(ErrorOf(ComparisonYaml("", "optimizers: []\n")), "cmp.yaml: optimizers = ");
+  EXPECT_CONTAINS(ErrorOf(ComparisonYaml("", "optimizers:\n  - {name: random, command: [x]}\n")),
+                  "cmp.yaml: optimizers[0].command = [x]: only an external optimiser runs a command");
+  EXPECT_CONTAINS(ErrorOf(ComparisonYaml("", "optimizers:\n  - {name: external}\n")),
+                  "cmp.yaml: optimizers[0].settings = ");
   EXPECT_CONTAINS(ErrorOf(ComparisonYaml("seeds: 0\n")), "cmp.yaml: seeds = '0': must be >= 1");
   EXPECT_CONTAINS(ErrorOf(ComparisonYaml("seeds: [1, 1]\n")), "cmp.yaml: seeds[1] = '1': repeats an earlier seed");
   EXPECT_CONTAINS(ErrorOf(ComparisonYaml("targets: {relative: [-0.1]}\n")),
@@ -274,13 +290,17 @@ TEST(Comparison, AnalyticObjectivesRunAsJobsAndTheReportHoldsTheirStatistics) {
 TEST(Comparison, KilledMidwayAndRunAgainGivesTheUninterruptedResultsAtAnotherThreadCount) {
   const fs::path killed = testing::ScratchDir("comparison_killed");
   const fs::path reference = testing::ScratchDir("comparison_reference");
-  const std::string yaml = ComparisonYaml("seeds: 3\ncheckpoint: {every_evaluations: 8}\n");
+  // The external optimiser first: the kill lands in its second run, and its
+  // program (killed with its parent's pipes closed) restarts from the
+  // checkpoint's saved state.
+  const std::string yaml = ComparisonYaml("seeds: 3\ncheckpoint: {every_evaluations: 8}\n",
+                                          std::string(kExternalOptimizer) + std::string(kOptimizers).substr(12));
   // The child dies (SIGKILL, no cleanup) in the middle of the third run,
   // between checkpoints. It forks before this process starts any thread.
   const pid_t child = ::fork();
   ASSERT_GE(child, 0);
   if (child == 0) {
-    g_kill_at = 2 * 40 + 29;
+    g_kill_at = 40 + 29;
     try {
       RunComparison(Parse(yaml, killed), killed, AnalyticOptions(ShiftedRastrigin, 1));
     } catch (...) {
@@ -293,8 +313,8 @@ TEST(Comparison, KilledMidwayAndRunAgainGivesTheUninterruptedResultsAtAnotherThr
 
   const ComparisonSpec spec = Parse(yaml, killed);
   const ComparisonResult resumed = RunComparison(spec, killed, AnalyticOptions(ShiftedRastrigin, 1));
-  EXPECT_EQ(resumed.already_done, 2) << "the two runs finished before the kill are not run again";
-  EXPECT_EQ(resumed.run_now, 6);
+  EXPECT_EQ(resumed.already_done, 1) << "the run finished before the kill is not run again";
+  EXPECT_EQ(resumed.run_now, 10);
   const ComparisonSpec ref_spec = Parse(yaml, reference);
   const ComparisonResult uninterrupted = RunComparison(ref_spec, reference, AnalyticOptions(ShiftedRastrigin, 2));
   ASSERT_TRUE(resumed.analysis && uninterrupted.analysis);
@@ -308,6 +328,32 @@ TEST(Comparison, KilledMidwayAndRunAgainGivesTheUninterruptedResultsAtAnotherThr
   for (const char* file : {"runs.csv", "convergence.csv", "fixed_budget.csv", "fixed_target.csv", "pairwise.csv"}) {
     EXPECT_EQ(Read(killed / file), Read(reference / file)) << file;
   }
+}
+
+TEST(Comparison, AnExternalOptimizerThatExitsIsANamedErrorAndWhatWasStoredStays) {
+  const fs::path out = testing::ScratchDir("comparison_external_exit");
+  const std::string optimizers = fmt::format(
+      "optimizers:\n  - {{name: random}}\n  - {{name: external, label: quitter, command: [/usr/bin/python3, "
+      "'{}', exit, '3'], settings: {{batch: 4}}}}\n",
+      kFakeExternal);
+  const ComparisonSpec spec = Parse(ComparisonYaml("seeds: 1\ncheckpoint: {every_evaluations: 4}\n", optimizers), out);
+  try {
+    RunComparison(spec, out, AnalyticOptions(ShiftedRosenbrock));
+    ADD_FAILURE() << "the comparison went on";
+  } catch (const search::ExternalOptimizerError& e) {
+    EXPECT_EQ(e.kind(), search::ExternalOptimizerError::Kind::kExited);
+    EXPECT_CONTAINS(e.what(), "exited with status 3 without replying to 'ask'");
+  }
+  ResultStore store(spec.store);
+  const auto random = store.FindJob("cmp.random.s1");
+  ASSERT_TRUE(random.has_value());
+  EXPECT_EQ(random->status, JobStatus::kFinished);
+  EXPECT_EQ(store.EvaluationCount(random->id), 40);
+  const auto quitter = store.FindJob("cmp.quitter.s1");
+  ASSERT_TRUE(quitter.has_value());
+  EXPECT_EQ(quitter->status, JobStatus::kFailed);
+  EXPECT_CONTAINS(quitter->stop_reason, "exited with status 3");
+  EXPECT_EQ(store.EvaluationCount(quitter->id), 8) << "the two batches evaluated before it exited are kept";
 }
 
 }  // namespace
