@@ -101,6 +101,9 @@ ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem
       if (const auto info = store.FindJob(run.job.name)) status = info->status;
     }
     if (status && Done(*status)) {
+      // Resuming a finished job does nothing but check that its spec and
+      // recordings are the ones it ran with: a changed comparison is named.
+      (void)RunJob(run.job, JobStart::kResume, job_options);
       ++result.already_done;
       continue;
     }

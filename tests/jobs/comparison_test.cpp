@@ -284,6 +284,16 @@ TEST(Comparison, AnalyticObjectivesRunAsJobsAndTheReportHoldsTheirStatistics) {
     EXPECT_EQ(again.already_done, 12);
     EXPECT_EQ(again.run_now, 0);
     EXPECT_EQ(Read(out / "pairwise.csv"), pairwise);
+
+    // Another objective into the same folder: named, not mixed in.
+    const ComparisonSpec changed =
+        Parse(ComparisonYaml("seeds: 5\n", kOptimizers, "budget: {evaluations: 30}\n"), out);
+    try {
+      RunComparison(changed, out, AnalyticOptions(f));
+      ADD_FAILURE() << "a changed comparison reused the runs";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_CONTAINS(e.what(), "job 'cmp.random.s1' was started with another spec (/budget/evaluations");
+    }
   }
 }
 

@@ -4,7 +4,8 @@
 // store, then the analysis and the report.
 //
 // Resume. Running a comparison again continues it: a run whose job is
-// finished or aborted is not run again, a job left stopped or interrupted
+// finished or aborted is not run again (but its spec and recordings must be
+// the ones it ran with, else the error names the job and what changed), a job left stopped or interrupted
 // (a kill) is resumed exactly (job_commands.h), the others are run. Each
 // run's history depends only on its spec and seed, so a comparison killed
 // at any moment and run again gives the results of an uninterrupted one, at
