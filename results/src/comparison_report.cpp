@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -81,7 +82,7 @@ void WriteCsvFiles(const std::filesystem::path& dir, const ComparisonAnalysis& a
 // median as a line.
 std::string BandPlotScript(const ComparisonAnalysis& a, const std::vector<Band> OptimizerSummary::*bands,
                            const std::string& title, const std::string& xlabel, const std::string& ylabel,
-                           bool log_x) {
+                           bool log_x, double y_max = optimizer_stats::kNaN) {
   std::string data;
   std::vector<std::string> plots;
   for (size_t i = 0; i < a.optimizers.size(); ++i) {
@@ -97,9 +98,22 @@ std::string BandPlotScript(const ComparisonAnalysis& a, const std::vector<Band> 
                                 GnuplotQuote(a.optimizers[i].optimizer)));
   }
   if (plots.empty()) return "";
-  return fmt::format("{}set title {}\nset xlabel {}\nset ylabel {}\nset grid\n{}set key outside right\nplot {}\n",
+  const std::string y_range = std::isfinite(y_max) ? fmt::format("set yrange [*:{:.9g}]\n", y_max) : "";
+  return fmt::format("{}set title {}\nset xlabel {}\nset ylabel {}\nset grid\n{}{}set key outside right\nplot {}\n",
                      data, GnuplotQuote(title), GnuplotQuote(xlabel), GnuplotQuote(ylabel),
-                     log_x ? "set logscale x\n" : "", fmt::join(plots, ", \\\n  "));
+                     log_x ? "set logscale x\n" : "", y_range, fmt::join(plots, ", \\\n  "));
+}
+
+// The first evaluations' scores dwarf the later ones: the convergence plots
+// show scores up to the worst upper quartile at the first budget fraction.
+double ConvergenceYMax(const ComparisonAnalysis& a) {
+  double y = optimizer_stats::kNaN;
+  for (const OptimizerSummary& o : a.optimizers) {
+    if (!o.fixed_budget.empty() && std::isfinite(o.fixed_budget.front().q75)) {
+      y = std::isnan(y) ? o.fixed_budget.front().q75 : std::max(y, o.fixed_budget.front().q75);
+    }
+  }
+  return y;
 }
 
 // The figure, or nothing for a plot without data.
@@ -136,11 +150,12 @@ std::string Page(const std::string& title, const ComparisonAnalysis& a, html::Pl
 
   h << "<h2>Convergence</h2>\n";
   h << Figure(plot, BandPlotScript(a, &OptimizerSummary::by_evaluations, "best so far against evaluations",
-                                  "evaluations", "best score so far", false),
-                   "median (line) and interquartile range (band) over each optimiser's runs");
+                                  "evaluations", "best score so far", false, ConvergenceYMax(a)),
+                   "median (line) and interquartile range (band) over each optimiser's runs; the score axis "
+                   "stops at the worst upper quartile after the first tenth of the budget");
   h << Figure(plot, BandPlotScript(a, &OptimizerSummary::by_seconds, "best so far against evaluation time",
                                   "evaluation seconds (sum over the run's evaluations)", "best score so far",
-                                  false),
+                                  false, ConvergenceYMax(a)),
                    "median and interquartile range; time is the run's summed evaluation wall time");
 
   h << "<h2>Fixed budget</h2>\n<table>\n<tr><th>optimizer</th>";
