@@ -136,10 +136,15 @@ TEST(ExternalOptimizer, BadSettingsAreNamed) {
   EXPECT_NE(message({{"command", {"x"}}, {"comand", 1}}).find("comand"), std::string::npos);
 }
 
-bool HaveOptuna() { return std::system("/usr/bin/python3 -c 'import optuna, cmaes' 2>/dev/null") == 0; }
+// Whether the bridge can run (found, not imported: importing Optuna takes a second or two).
+bool HaveOptuna() {
+  return std::system("/usr/bin/python3 -c \"import importlib.util as u, sys; "
+                     "sys.exit(not (u.find_spec('optuna') and u.find_spec('cmaes')))\" 2>/dev/null") == 0;
+}
 
-// The sampler run whole, and run to 8 evaluations, saved, restored in a
-// new bridge and run on: the same candidates.
+// The sampler run to 8 evaluations and saved; then on to 16, and a new
+// bridge restored from the saved state and run to 16 too: the same
+// candidates. (Two bridges, not three: each starts Optuna, about 2 s.)
 void ExpectBridgeResumesExactly(const std::string& sampler) {
   if (!HaveOptuna()) GTEST_SKIP() << "/usr/bin/python3 has no optuna (Debian: python3-optuna)";
   const nlohmann::json settings = {{"command", {"/usr/bin/python3", kBridge}},
@@ -147,19 +152,17 @@ void ExpectBridgeResumesExactly(const std::string& sampler) {
                                    {"batch", 4},
                                    {"max_evals", 16},
                                    {"timeout_s", 30.0}};
-  CheckedOptimizer whole = MakeOptimizer("external", settings, testing::Box(3, 0, 1), 9);
-  const testing::History reference = testing::RunOptimizer(whole, testing::Rosenbrock, 4);
-  ASSERT_EQ(reference.asked.size(), 16u);
-
   CheckedOptimizer first = MakeOptimizer("external", settings, testing::Box(3, 0, 1), 9);
-  testing::History part = testing::RunOptimizer(first, testing::Rosenbrock, 4, testing::TellOrder::kInOrder, 8);
+  (void)testing::RunOptimizer(first, testing::Rosenbrock, 4, testing::TellOrder::kInOrder, 8);
   const nlohmann::json state = first.SaveState();
+  const testing::History reference = testing::RunOptimizer(first, testing::Rosenbrock, 4);
+  ASSERT_EQ(reference.asked.size(), 8u) << "the second half";
+
   CheckedOptimizer second = MakeOptimizer("external", settings, testing::Box(3, 0, 1), 9);
   second.RestoreState(state);
   const testing::History rest = testing::RunOptimizer(second, testing::Rosenbrock, 4);
-  part.asked.insert(part.asked.end(), rest.asked.begin(), rest.asked.end());
   std::string why;
-  EXPECT_TRUE(testing::SameCandidates(reference.asked, part.asked, &why)) << why;
+  EXPECT_TRUE(testing::SameCandidates(reference.asked, rest.asked, &why)) << why;
   EXPECT_LT(reference.best, testing::Rosenbrock({0.5, 0.5, 0.5})) << "it minimises";
 }
 
