@@ -1,6 +1,7 @@
 #include "compare_cli.h"
 
 #include "calib/jobs/comparison.h"
+#include "calib/jobs/mpi_evaluator.h"
 #include "job_cli.h"
 
 #include <fmt/format.h>
@@ -40,6 +41,12 @@ std::shared_ptr<CompareCli> AddCompareSubcommand(CLI::App& app) {
 
 std::optional<int> RunChosenCompareSubcommand(CompareCli& cli) {
   if (!*cli.command) return std::nullopt;
+  if (LaunchedByMpi()) {
+    // Every rank would run the whole comparison against one store.
+    throw std::invalid_argument(
+        "compare-optimizers does not run under an MPI launcher yet: run it as one process "
+        "(--threads N), or run its jobs with calib run");
+  }
   const ComparisonSpec spec = LoadComparisonSpec(cli.spec, cli.out);
   ComparisonOptions options;
   options.threads = cli.threads;

@@ -100,7 +100,9 @@ class ExternalOptimizer final : public Optimizer {
   }
 
   void RestoreState(const nlohmann::json& state) override {
+    nlohmann::json process_state;
     try {
+      process_state = state.at("process");
       asked_ = state.at("asked").get<int64_t>();
       done_ = state.at("done").get<bool>();
       stop_reason_ = state.at("stop_reason").get<std::string>();
@@ -120,7 +122,7 @@ class ExternalOptimizer final : public Optimizer {
     } catch (const nlohmann::json::exception& e) {
       throw std::invalid_argument(fmt::format("external: state is not this optimiser's: {}", e.what()));
     }
-    Exchange({{"op", "restore"}, {"state", state.at("process")}});
+    Exchange({{"op", "restore"}, {"state", process_state}});
   }
 
   std::optional<std::vector<int64_t>> AwaitedIds() const override {
