@@ -10,6 +10,8 @@
 #include "compare_cli.h"
 #include "job_cli.h"
 #include "loop_cli.h"
+#include "segment_cli.h"
+#include "service_cli.h"
 #include "synth_cli.h"
 
 #include <CLI/CLI.hpp>
@@ -141,10 +143,12 @@ int main(int argc, char** argv) {
   compare->add_option("--csv", compare_csv, "also write the per-frame difference here");
   AddCacheOptions(compare, &cache_dir, &no_cache);
 
-  const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best
+  const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best, validate
   const auto loop_cli = calib::cli::AddLoopSubcommand(app);
   const auto benchmark_cli = calib::cli::AddLoopBenchmarkSubcommand(app);
   const auto compare_optimizers_cli = calib::cli::AddCompareSubcommand(app);
+  const auto service_cli = calib::cli::AddServiceSubcommands(app);  // serve, submit, status, ...
+  const auto segment_cli = calib::cli::AddSegmentSubcommand(app);
 
   try {
     app.parse(argc, argv);
@@ -170,6 +174,8 @@ int main(int argc, char** argv) {
     if (const auto status = calib::cli::RunChosenCompareSubcommand(*compare_optimizers_cli)) {
       return *status;
     }
+    if (const auto status = calib::cli::RunChosenServiceSubcommand(*service_cli)) return *status;
+    if (const auto status = calib::cli::RunChosenSegmentSubcommand(*segment_cli)) return *status;
     Finish(&settings, integrator, cache_dir, no_cache);
     if (*mesh) {
       const auto summary = calib::RunMesh(recording, out, settings);

@@ -30,8 +30,9 @@ std::shared_ptr<CompareCli> AddCompareSubcommand(CLI::App& app) {
       "(resumable: run it again to continue)");
   cli->command = cmd;
   cmd->add_option("spec", cli->spec, "comparison spec (YAML or JSON; docs/compare.md)")->required();
-  cmd->add_option("--out", cli->out, "folder for the results store, the report and its CSV files")
-      ->required();
+  cmd->add_option("--out", cli->out,
+                  "folder for the results store, the report and its CSV files (default: "
+                  "out/compare/<the spec's name>/ in the current folder)");
   cmd->add_option("--threads", cli->threads, "OpenMP threads per run, 0: all cores (default: the spec's)")
       ->check(CLI::NonNegativeNumber);
   AddProgressAndCacheOptions(cmd, &cli->progress, &cli->progress_interval_s, &cli->cache_dir,
@@ -54,7 +55,8 @@ std::optional<int> RunChosenCompareSubcommand(CompareCli& cli) {
   options.no_cache = cli.no_cache;
   options.progress = ProgressModeFromString(cli.progress);
   options.progress_interval_s = cli.progress_interval_s;
-  const ComparisonResult result = RunComparison(spec, cli.out, options);
+  options.program_version = std::string("calib ") + CALIB_VERSION;
+  const ComparisonResult result = RunComparison(spec, spec.out_dir, options);
   fmt::print("{} runs: {} done before, {} run now\nstore: {}\n", result.runs, result.already_done,
              result.run_now, result.store.string());
   if (result.stopped) {

@@ -17,6 +17,7 @@ struct JobCli {
   CLI::App* resume = nullptr;
   CLI::App* results = nullptr;
   CLI::App* best = nullptr;
+  CLI::App* validate = nullptr;
 
   std::filesystem::path spec_path;
   std::string job;
@@ -33,6 +34,10 @@ struct JobCli {
   std::filesystem::path csv;
   std::filesystem::path json;
   std::filesystem::path plot;
+  bool fresh = false;
+  std::optional<std::string> name;
+  std::optional<uint64_t> seed;
+  std::optional<int64_t> budget;
 };
 
 void AddProgressAndCacheOptions(CLI::App* cmd, std::string* progress, double* progress_interval_s,
@@ -51,6 +56,31 @@ void AddProgressAndCacheOptions(CLI::App* cmd, std::string* progress, double* pr
 
 namespace {
 
+void AddOverrideOptions(CLI::App* cmd, JobCli* cli) {
+  cmd->add_option("--name", cli->name,
+                  "the job's name, in place of the spec's `name` (its default store and report "
+                  "folder follow it)");
+}
+
+JobSpecOverrides Overrides(const JobCli& cli) {
+  JobSpecOverrides overrides;
+  overrides.name = cli.name;
+  overrides.seed = cli.seed;
+  overrides.budget_evaluations = cli.budget;
+  return overrides;
+}
+
+// The command that continues a stopped job: the same spec, name, seed,
+// budget and store.
+std::string ResumeCommand(const JobCli& cli) {
+  std::string command = "calib resume " + cli.spec_path.string();
+  if (cli.name) command += " --name " + *cli.name;
+  if (cli.seed) command += fmt::format(" --seed {}", *cli.seed);
+  if (cli.budget) command += fmt::format(" --budget {}", *cli.budget);
+  if (!cli.store.empty()) command += " --store " + cli.store;
+  return command;
+}
+
 void AddRunOptions(CLI::App* cmd, JobCli* cli) {
   cmd->add_option("job", cli->spec_path, "job spec file (YAML or JSON; docs/job_spec.md)")
       ->required();
@@ -66,11 +96,17 @@ void AddRunOptions(CLI::App* cmd, JobCli* cli) {
   cmd->add_flag("--no-report", cli->no_report,
                 "do not write the report (best parameters, overlays, summary) at the end");
   cmd->add_flag("--no-video", cli->no_video, "write the report without overlay videos");
+  AddOverrideOptions(cmd, cli);
+  cmd->add_option("--seed", cli->seed, "the job's seed, in place of the spec's `seed`");
+  cmd->add_option("--budget", cli->budget,
+                  "evaluations, in place of the spec's budget.evaluations; on resume a larger "
+                  "one extends the job, finished or not (docs/job_spec.md)");
 }
 
 void AddJobArgument(CLI::App* cmd, JobCli* cli) {
   cmd->add_option("job", cli->job, "job spec file, or a job name with --store")->required();
   cmd->add_option("--store", cli->store, "results store (default: the spec's results.store)");
+  AddOverrideOptions(cmd, cli);
 }
 
 std::optional<std::filesystem::path> OptionalPath(const std::string& text) {
@@ -96,8 +132,14 @@ int RunOrResume(JobCli& cli, JobStart start, int argc, char** argv) {
   const bool manager = !mpi || mpi->rank() == 0;
   if (!manager) spdlog::set_level(spdlog::level::warn);
 
-  const JobSpec spec = LoadJobSpec(cli.spec_path);
+  JobSpecParseOptions parse;
+  parse.overrides = Overrides(cli);
+  const JobSpec spec = LoadJobSpec(cli.spec_path, parse);
   JobCommandOptions options;
+  options.fresh = cli.fresh;
+  options.program_version = std::string("calib ") + CALIB_VERSION;
+  options.command = start == JobStart::kRun ? (cli.fresh ? "run --fresh" : "run") : "resume";
+  if (cli.budget) options.command += fmt::format(" --budget {}", *cli.budget);
   options.threads = cli.threads;
   options.store = OptionalPath(cli.store);
   if (cli.wall_time_s > 0.0) options.wall_time_s = cli.wall_time_s;
@@ -113,7 +155,9 @@ int RunOrResume(JobCli& cli, JobStart start, int argc, char** argv) {
   PrintRun(result);
   switch (result.run.status) {
     case JobStatus::kAborted: return 3;
-    case JobStatus::kStopped: return 4;
+    case JobStatus::kStopped:
+      fmt::print("continue it with: {}\n", ResumeCommand(cli));
+      return 4;
     default: return 0;
   }
 }
@@ -125,6 +169,9 @@ std::shared_ptr<JobCli> AddJobSubcommands(CLI::App& app) {
   cli->run = app.add_subcommand(
       "run", "calibrate: run a job spec, recording every evaluation in the results store");
   AddRunOptions(cli->run, cli.get());
+  cli->run->add_flag("--fresh", cli->fresh,
+                     "start over: delete a job of the same name in the store first, asking "
+                     "nothing (refused while a process works on it)");
   cli->resume = app.add_subcommand(
       "resume", "continue a stopped or killed job from its last good checkpoint");
   AddRunOptions(cli->resume, cli.get());
@@ -141,14 +188,32 @@ std::shared_ptr<JobCli> AddJobSubcommands(CLI::App& app) {
       "best", "write the best parameters of a job as a parameter file (for calib simulate)");
   AddJobArgument(cli->best, cli.get());
   cli->best->add_option("--out", cli->out, "parameter file to write")->required();
+
+  cli->validate = app.add_subcommand(
+      "validate", "check a job spec and its recordings without running anything (exit 0: valid)");
+  cli->validate->add_option("job", cli->spec_path, "job spec file (YAML or JSON)")->required();
+  AddOverrideOptions(cli->validate, cli.get());
   return cli;
 }
 
 std::optional<int> RunChosenJobSubcommand(JobCli& cli, int argc, char** argv) {
   if (*cli.run) return RunOrResume(cli, JobStart::kRun, argc, argv);
   if (*cli.resume) return RunOrResume(cli, JobStart::kResume, argc, argv);
+  if (*cli.validate) {
+    JobSpecParseOptions parse;
+    parse.overrides = Overrides(cli);
+    const JobSpec spec = LoadJobSpec(cli.spec_path, parse);
+    CheckRecordings(spec);
+    fmt::print("{}: valid: job '{}', {} searched parameters, optimiser {}, {} evaluations, {} "
+               "training and {} held-out recordings\n",
+               spec.source, spec.name, spec.SearchedNames().size(), spec.optimizer.name,
+               spec.budget.evaluations, spec.train.size(), spec.holdout.size());
+    fmt::print("store: {}\nreport: {}\n", ResolveStorePath(spec, OptionalPath(cli.store)).string(),
+               spec.results.out_dir.string());
+    return 0;
+  }
   if (*cli.results) {
-    auto [store, job] = OpenJob(LocateJob(cli.job, OptionalPath(cli.store)));
+    auto [store, job] = OpenJob(LocateJob(cli.job, OptionalPath(cli.store), Overrides(cli)));
     fmt::print("{}", JobResultsText(store, job));
     if (!cli.csv.empty()) {
       store.ExportCsv(job, cli.csv);
@@ -165,7 +230,7 @@ std::optional<int> RunChosenJobSubcommand(JobCli& cli, int argc, char** argv) {
     return 0;
   }
   if (*cli.best) {
-    auto [store, job] = OpenJob(LocateJob(cli.job, OptionalPath(cli.store)));
+    auto [store, job] = OpenJob(LocateJob(cli.job, OptionalPath(cli.store), Overrides(cli)));
     if (cli.out.has_parent_path()) std::filesystem::create_directories(cli.out.parent_path());
     store.WriteBestParameterFile(job, cli.out);
     const auto best = store.Best(job);

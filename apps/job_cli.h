@@ -1,5 +1,5 @@
 #pragma once
-// The job subcommands of calib: run, resume, results, best. Kept apart from
+// The job subcommands of calib: run, resume, results, best, validate. Kept apart from
 // calib_main.cpp so that each subcommand family owns its options.
 
 #include <CLI/CLI.hpp>

@@ -48,6 +48,7 @@ struct LoopCli {
   std::vector<std::filesystem::path> train;
   std::vector<std::filesystem::path> holdout;
   std::filesystem::path out;
+  bool resume = false;
   LoopRunFlags flags;
 };
 
@@ -192,6 +193,9 @@ std::shared_ptr<LoopCli> AddLoopSubcommand(CLI::App& app) {
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--out", cli->out, "report folder (report.json, report.html, store.sqlite)")
       ->required();
+  cmd->add_flag("--resume", cli->resume,
+                "continue the loop whose store is in --out (killed or stopped part way), with "
+                "the options that started it; without it the store is started afresh");
   AddLoopRunOptions(cmd, &cli->flags);
   return cli;
 }
@@ -202,6 +206,7 @@ std::optional<int> RunChosenLoopSubcommand(LoopCli& cli, int argc, char** argv) 
   options.train = cli.train;
   options.holdout = cli.holdout;
   options.out_dir = cli.out;
+  options.resume = cli.resume;
   const LoopResult result = RunLoop(options, ProgressLog(cli.flags));
   fmt::print("\n{}", result.table);
   fmt::print("run time: {:.1f} s\n", result.report.run_time_s);

@@ -13,11 +13,13 @@ packages=(
   libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libsqlite3-dev sqlite3
+  libcpp-httplib-dev
   libcsv-dev
   libopenmpi-dev openmpi-bin
   gnuplot-nox
   python3 python3-yaml
   python3-scipy python3-optuna python3-cmaes
+  nodejs chromium
 )
 
 missing=()
@@ -26,11 +28,22 @@ for p in "${packages[@]}"; do
     missing+=("$p")
   fi
 done
-[ ${#missing[@]} -eq 0 ] && exit 0
+# npm: Debian's package, unless a node install (NodeSource's nodejs) brings its own.
+command -v npm >/dev/null || missing+=(npm)
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "install-deps: installing ${missing[*]}" >&2
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
 
-echo "install-deps: installing ${missing[*]}" >&2
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+# The dashboard's npm packages (dashboard/package-lock.json): Chart.js, which
+# the build compiles into the server, and puppeteer-core for its browser test.
+dashboard="$(cd "$(dirname "$0")/.." && pwd)/dashboard"
+if ! cmp -s "$dashboard/package-lock.json" "$dashboard/node_modules/.calib-installed-lock.json"; then
+  echo "install-deps: npm ci in $dashboard" >&2
+  npm ci --prefix "$dashboard" --no-audit --no-fund >/dev/null
+  cp "$dashboard/package-lock.json" "$dashboard/node_modules/.calib-installed-lock.json"
+fi

@@ -282,7 +282,9 @@ LoopResult Loop::Run() {
   threads_ = ResolveThreadCount(o_.threads);
   fs::create_directories(o_.out_dir);
   const fs::path store_path = o_.out_dir / "store.sqlite";
-  for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(store_path.string() + suffix);
+  if (!o_.resume) {
+    for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(store_path.string() + suffix);
+  }
   store_ = std::make_unique<ResultStore>(store_path);
 
   report_.title = "calib loop";

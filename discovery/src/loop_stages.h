@@ -14,6 +14,7 @@
 #include "calib/discovery/residual.h"
 #include "calib/discovery/stage_calibration.h"
 #include "calib/evaluator/evaluation.h"
+#include "calib/jobs/job_spec.h"
 #include "calib/results/store.h"
 
 #include <cstdint>
@@ -131,6 +132,7 @@ class StageCalibrator {
   }
   // The job's best values and training score; empty values and +inf
   // where no candidate simulated every training recording.
+  int64_t FindOrCreateJob(const JobSpec& spec);
   std::pair<ParameterValues, double> RunJob(const std::string& name,
                                             const std::vector<std::string>& effects,
                                             const std::vector<ParameterSetting>& settings,

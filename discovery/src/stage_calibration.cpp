@@ -146,6 +146,28 @@ std::string StageName(const std::vector<std::string>& effects) {
   return ModelDefinition{effects}.ToString();
 }
 
+// The store's job for `spec`: the one of its name when the loop resumes
+// (it must have been made with the same request, recordings and model; the
+// thread count may differ, since it changes no result), else a new one.
+int64_t StageCalibrator::FindOrCreateJob(const JobSpec& spec) {
+  nlohmann::json wanted = ToJson(spec);
+  if (o_.resume) {
+    if (std::optional<JobInfo> stored = store_.FindJob(spec.name)) {
+      nlohmann::json had = stored->spec;
+      had.erase("threads");
+      wanted.erase("threads");
+      if (had != wanted) {
+        throw std::invalid_argument(fmt::format(
+            "{}: job '{}' was made by a loop with other options (recordings, model, search or "
+            "seed); resume with the options that made it, or start over without --resume",
+            store_.path().string(), spec.name));
+      }
+      return stored->id;
+    }
+  }
+  return store_.CreateJob(spec.name, ToJson(spec));
+}
+
 // One calibration job of the store: `settings` searched by the loop's
 // optimiser (from x0 with initial_sigma when given), `budget` evaluations.
 // Returns the best record's values and score.
@@ -178,7 +200,7 @@ std::pair<ParameterValues, double> StageCalibrator::RunJob(const std::string& na
   }
   RecordingObjective objective(train, o_.simulation, ModelDefinition{effects});
   const std::unique_ptr<BatchEvaluator> evaluator = MakeEvaluator(objective);
-  const int64_t job = store_.CreateJob(spec.name, ToJson(spec));
+  const int64_t job = FindOrCreateJob(spec);
   RunControl control;
   const RunSummary run = RunCalibration(spec.request(), store_, job, *evaluator, control);
   fit->evaluations += static_cast<int>(run.evaluations);

@@ -188,11 +188,15 @@ ComparisonSpec ParseComparisonSpec(const std::string& text, const std::string& s
   // file and key as a job spec's do) with the first optimiser and seed.
   YAML::Node objective = YAML::Clone(root);
   for (const char* key : kComparisonKeys) objective.remove(key);
-  const std::filesystem::path out = std::filesystem::absolute(out_dir).lexically_normal();
-  spec.store = out / "comparison.sqlite";
   const YAML::Node name = top.Require("name", "a comparison name (letters, digits, '_', '-', '.')");
   spec.name = top.String("name", name);
   if (!spec_reader::ValidName(spec.name)) top.Fail("name", name, "must be non-empty letters, digits, '_', '-', '.'");
+  // Every output's default place is under out/ in the current folder.
+  const std::filesystem::path out =
+      std::filesystem::absolute(out_dir.empty() ? kDefaultComparisonRoot / spec.name : out_dir)
+          .lexically_normal();
+  spec.out_dir = out;
+  spec.store = out / "comparison.sqlite";
   for (size_t i = 0; i < spec.optimizers.size(); ++i) {
     const ComparedOptimizer& o = spec.optimizers[i];
     for (const uint64_t seed : spec.seeds) {

@@ -4,6 +4,7 @@
 #include "calib/jobs/job_inputs.h"
 #include "calib/jobs/job_lock.h"
 #include "calib/jobs/mpi_evaluator.h"
+#include "calib/search/factory.h"
 
 #include <fmt/format.h>
 
@@ -12,7 +13,9 @@
 #include <unistd.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <csignal>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -72,34 +75,66 @@ bool ChangeAllowedOnResume(const std::string& path) {
   return false;
 }
 
-void CheckResumedSpec(const JobSpec& spec, ResultStore& store, const JobInfo& info) {
+// The budget the stored spec gave (0 when it cannot be read).
+int64_t StoredBudget(const JobInfo& info) {
+  const nlohmann::json* budget = info.spec.is_object() && info.spec.contains("budget")
+                                     ? &info.spec["budget"]
+                                     : nullptr;
+  if (budget == nullptr || !budget->is_object() || !budget->contains("evaluations") ||
+      !(*budget)["evaluations"].is_number_integer()) {
+    return 0;
+  }
+  return (*budget)["evaluations"].get<int64_t>();
+}
+
+// Returns true when the spec's budget grew (the job is extended).
+bool CheckResumedSpec(const JobSpec& spec, ResultStore& store, const JobInfo& info) {
   const nlohmann::json now = ToJson(spec);
-  if (now == info.spec) return;
+  if (now == info.spec) return false;
+  const int64_t stored_budget = StoredBudget(info);
+  const bool grown = stored_budget > 0 && spec.budget.evaluations > stored_budget;
+  const std::string budget_setting = "/optimizer/settings/" + search::BudgetSetting(spec.optimizer.name);
   std::vector<std::string> changed;
   for (const auto& op : nlohmann::json::diff(info.spec, now)) {
     const std::string path = op.value("path", "");
+    if (grown && (path == "/budget/evaluations" || path == budget_setting)) continue;
     if (!ChangeAllowedOnResume(path)) changed.push_back(path);
+  }
+  if (grown && changed.empty() && !search::BudgetExtendsExactly(spec.optimizer.name)) {
+    throw std::invalid_argument(fmt::format(
+        "{}: job '{}': budget.evaluations = {} (was {}): optimiser '{}' lays out its search for "
+        "its budget, so a larger one continues with another history than a run with it from the "
+        "start; start the job over instead (`calib run --fresh --budget {} {}`). Budgets extend "
+        "for random, cmaes and genetic",
+        spec.source, spec.name, spec.budget.evaluations, stored_budget, spec.optimizer.name,
+        spec.budget.evaluations, spec.source));
   }
   if (!changed.empty()) {
     std::string list;
     for (const auto& p : changed) list += (list.empty() ? "" : ", ") + p;
     throw std::invalid_argument(fmt::format(
         "{}: job '{}' was started with another spec ({} differ{}); resume needs the same spec "
-        "(only threads, processes, checkpoint, budget.wall_time_s and results may change)",
+        "(only threads, processes, checkpoint, budget.wall_time_s and results may change, and "
+        "budget.evaluations grow)",
         spec.source, spec.name, list, changed.size() == 1 ? "s" : ""));
   }
   store.SetJobSpec(info.id, now);
-}
-
-std::filesystem::path StorePath(const JobSpec& spec, const JobCommandOptions& options) {
-  return options.store ? *options.store : spec.results.store;
+  return grown;
 }
 
 // Finds or creates the job for `start`; changes nothing in an existing job
-// (that waits for its lock).
+// (that waits for its lock), except that `fresh` deletes it.
 int64_t FindOrCreateJob(const JobSpec& spec, JobStart start, ResultStore& store,
-                        const JobLockOptions& lock) {
-  const std::optional<JobInfo> info = store.FindJob(spec.name);
+                        const JobLockOptions& lock, bool fresh) {
+  std::optional<JobInfo> info = store.FindJob(spec.name);
+  if (start == JobStart::kRun && info && fresh) {
+    // Refused while a live process holds it; the lock goes with the job.
+    HeldJobLock held(store, info->id, spec.name, lock);
+    store.DeleteJob(info->id);
+    spdlog::info("{}: job '{}' deleted (--fresh): starting it over", store.path().string(),
+                 spec.name);
+    info.reset();
+  }
   if (start == JobStart::kRun) {
     if (!info) return store.CreateJob(spec.name, ToJson(spec));
     // A job that never got going (created, nothing recorded) may be run again.
@@ -108,7 +143,8 @@ int64_t FindOrCreateJob(const JobSpec& spec, JobStart start, ResultStore& store,
     }
     throw std::invalid_argument(fmt::format(
         "{}: job '{}' already exists ({}, {} evaluations): continue it with `calib resume "
-        "{}`, or give the job another name or store",
+        "{}`, start it over with `calib run --fresh`, or give the job another name (--name) or "
+        "store",
         store.path().string(), spec.name, JobStatusText(store, *info, lock),
         store.EvaluationCount(info->id), spec.source));
   }
@@ -126,9 +162,9 @@ int64_t FindOrCreateJob(const JobSpec& spec, JobStart start, ResultStore& store,
 bool PrepareHeldJob(const JobSpec& spec, JobStart start, ResultStore& store, int64_t job,
                     const std::vector<InputFingerprint>& inputs, RunSummary* left_alone) {
   const JobInfo info = store.Job(job);
-  CheckResumedSpec(spec, store, info);
+  const bool extended = CheckResumedSpec(spec, store, info);
   if (start == JobStart::kResume &&
-      (info.status == JobStatus::kFinished || info.status == JobStatus::kAborted)) {
+      ((info.status == JobStatus::kFinished && !extended) || info.status == JobStatus::kAborted)) {
     left_alone->status = JobStatus::kCreated;
     left_alone->stop_reason = fmt::format("the job is already {} ({})", ToString(info.status),
                                           info.stop_reason);
@@ -219,10 +255,10 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
   const int threads = use_mpi ? 1 : ResolveThreadCount(options.threads.value_or(spec.threads));
   const std::vector<InputFingerprint> inputs = FingerprintJobInputs(spec);
 
-  out.store = StorePath(spec, options);
+  out.store = ResolveStorePath(spec, options.store);
   if (!out.store.parent_path().empty()) std::filesystem::create_directories(out.store.parent_path());
   ResultStore store(out.store);
-  out.job = FindOrCreateJob(spec, start, store, options.lock);
+  out.job = FindOrCreateJob(spec, start, store, options.lock, options.fresh);
   // Before anything of the job changes: a second process is refused here.
   HeldJobLock lock(store, out.job, spec.name, options.lock);
   if (lock.taken_over()) {
@@ -234,6 +270,17 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
     if (options.write_report) out.report = WriteReport(spec, store, out.job, preparation, options);
     return out;
   }
+  JobRunRecord run_record;
+  run_record.started_unix_s = std::chrono::duration<double>(
+                                  std::chrono::system_clock::now().time_since_epoch())
+                                  .count();
+  run_record.program_version = options.program_version;
+  run_record.host = ThisHostName();
+  run_record.pid = ::getpid();
+  run_record.command = options.command.empty()
+                           ? std::string(start == JobStart::kRun ? "run" : "resume")
+                           : options.command;
+  store.RecordJobRun(out.job, run_record);
 
   std::unique_ptr<Objective> objective;
   std::unique_ptr<BatchEvaluator> evaluator;
@@ -246,11 +293,15 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
   }
 
   ProgressDisplay progress(options.progress, options.progress_interval_s);
-  ScopedStopSignals signals;
+  std::optional<ScopedStopSignals> signals;
+  if (options.handle_signals) signals.emplace();
   RunControl control;
   control.batch_size = options.batch_size;
   control.wall_time_s = options.wall_time_s ? options.wall_time_s : spec.budget.wall_time_s;
-  control.interrupted = [&lock] { return ScopedStopSignals::Interrupted() || lock.lost(); };
+  control.interrupted = [&lock, &signals, &options] {
+    return (signals && ScopedStopSignals::Interrupted()) ||
+           (options.interrupted && options.interrupted()) || lock.lost();
+  };
   try {
     if (mpi_evaluator) mpi_evaluator->WaitForWorkers();
     BatchEvaluator& batch_evaluator = mpi_evaluator ? *mpi_evaluator : *evaluator;
@@ -274,16 +325,42 @@ JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOpt
   return out;
 }
 
-JobLocation LocateJob(const std::string& job, const std::optional<std::filesystem::path>& store) {
+std::filesystem::path ResolveStorePath(const JobSpec& spec,
+                                       const std::optional<std::filesystem::path>& store) {
+  if (store) return *store;
+  std::error_code ec;
+  const std::filesystem::path& earlier = spec.results.earlier_default_store;
+  if (earlier.empty() || std::filesystem::exists(spec.results.store, ec) ||
+      !std::filesystem::is_regular_file(earlier, ec)) {
+    return spec.results.store;
+  }
+  try {
+    StoreOptions read_only;
+    read_only.read_only = true;
+    if (ResultStore(earlier, read_only).FindJob(spec.name)) {
+      spdlog::info("{}: job '{}' is in this store, where jobs were stored by default before "
+                   "out/jobs/; it stays there",
+                   earlier.string(), spec.name);
+      return earlier;
+    }
+  } catch (const StoreError&) {
+    // Not a store this build reads: the default place it is.
+  }
+  return spec.results.store;
+}
+
+JobLocation LocateJob(const std::string& job, const std::optional<std::filesystem::path>& store,
+                      const JobSpecOverrides& overrides) {
   JobLocation location;
   const std::filesystem::path path(job);
   std::error_code ec;
   if (std::filesystem::is_regular_file(path, ec)) {
     JobSpecParseOptions parse;
     parse.recordings = RecordingCheck::kNone;
+    parse.overrides = overrides;
     const JobSpec spec = LoadJobSpec(path, parse);
     location.name = spec.name;
-    location.store = store ? *store : spec.results.store;
+    location.store = ResolveStorePath(spec, store);
     return location;
   }
   if (!store) {
@@ -291,7 +368,7 @@ JobLocation LocateJob(const std::string& job, const std::optional<std::filesyste
         "'{}' is not a job spec file; to name a job by its name, give its store with --store",
         job));
   }
-  location.name = job;
+  location.name = overrides.name.value_or(job);
   location.store = *store;
   return location;
 }

@@ -6,6 +6,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <ctime>
+
 #include <chrono>
 #include <fstream>
 #include <set>
@@ -60,6 +62,15 @@ std::string JobResultsText(const ResultStore& store, int64_t job) {
   text += fmt::format("status: {}\n", JobStatusText(store, info));
   text += store.Summary(job).Report();
   if (!text.empty() && text.back() != '\n') text += '\n';
+  for (const JobRunRecord& run : store.JobRuns(job)) {
+    const auto t = static_cast<std::time_t>(run.started_unix_s);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    text += fmt::format("{}: {} by {} on host {} (process {})\n", run.command,
+                        fmt::format("{:04}-{:02}-{:02} {:02}:{:02}:{:02} UTC", tm.tm_year + 1900,
+                                    tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec),
+                        run.program_version, run.host, run.pid);
+  }
   if (info.result.is_object() && info.result.contains("recordings")) {
     for (const auto& r : info.result["recordings"]) {
       text += fmt::format("{} {}: score {:.1f}, mean IoU {:.4f}, status {}\n",

@@ -381,6 +381,14 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
     const YAML::Node name = top.Require("name", "a job name (letters, digits, '_', '-', '.')");
     spec.name = top.String("name", name);
     if (!ValidName(spec.name)) top.Fail("name", name, "must be non-empty letters, digits, '_', '-', '.'");
+    if (options.overrides.name) {
+      spec.name = *options.overrides.name;
+      if (!ValidName(spec.name)) {
+        throw JobSpecError(fmt::format("{}: name = '{}' (given with --name): must be non-empty "
+                                       "letters, digits, '_', '-', '.'",
+                                       spec.source, spec.name));
+      }
+    }
   });
 
   errors.Check([&] { spec.train = ReadRecordings(top, "train", true, spec.base_dir, options.recordings); });
@@ -412,6 +420,13 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
     const YAML::Node ev = b.Require("evaluations", "an integer >= 1");
     spec.budget.evaluations = b.Int("evaluations", ev);
     if (spec.budget.evaluations < 1) b.Fail("budget.evaluations", ev, "must be >= 1");
+    if (options.overrides.budget_evaluations) {
+      spec.budget.evaluations = *options.overrides.budget_evaluations;
+      if (spec.budget.evaluations < 1) {
+        throw JobSpecError(fmt::format("{}: budget.evaluations = {} (given with --budget): must be >= 1",
+                                       spec.source, spec.budget.evaluations));
+      }
+    }
     if (b.Has("wall_time_s")) {
       const YAML::Node n = b.node()["wall_time_s"];
       const double w = b.Double("wall_time_s", n);
@@ -431,6 +446,7 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
         top.Fail("seed", n, "expected an integer >= 0");
       }
     }
+    if (options.overrides.seed) spec.seed = *options.overrides.seed;
   });
   errors.Check([&] {
     top.Read("threads", &spec.threads);
@@ -527,8 +543,10 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
   });
 
   errors.Check([&] {
-    spec.results.store = spec.base_dir / "results" / (spec.name + ".sqlite");
-    spec.results.out_dir = spec.base_dir / "results" / spec.name;
+    const std::filesystem::path root = std::filesystem::absolute(options.results_root);
+    spec.results.store = (root / (spec.name + ".sqlite")).lexically_normal();
+    spec.results.out_dir = (root / spec.name).lexically_normal();
+    spec.results.earlier_default_store = spec.base_dir / "results" / (spec.name + ".sqlite");
     if (top.Has("results")) {
       MapReader r(top.Get("results"), "results", &spec.source);
       std::string store, out_dir;
@@ -537,6 +555,7 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
       if (r.Has("store")) {
         if (store.empty()) r.Fail("results.store", r.node()["store"], "must be a file path");
         spec.results.store = Resolve(spec.base_dir, store);
+        spec.results.earlier_default_store.clear();
       }
       if (r.Has("out_dir")) {
         if (out_dir.empty()) r.Fail("results.out_dir", r.node()["out_dir"], "must be a folder path");

@@ -13,9 +13,10 @@ namespace calib {
 namespace {
 
 // Version 1: jobs, evaluations, checkpoints. Version 2 adds job_locks and
-// job_inputs; a version 1 store is migrated when opened for writing and read
-// as it is (no locks, no inputs) when opened read-only.
-constexpr int kSchemaVersion = 2;
+// job_inputs, version 3 job_runs and job_queue; an older store is migrated
+// when opened for writing and read as it is (no locks, inputs, runs or
+// queue) when opened read-only.
+constexpr int kSchemaVersion = 3;
 // PRAGMA application_id: 'CALB', so a foreign SQLite file is recognised.
 constexpr int64_t kApplicationId = 0x43414C42;
 
@@ -79,6 +80,31 @@ CREATE TABLE job_inputs(
   fnv1a64 INTEGER NOT NULL,
   PRIMARY KEY (job_id, path)
 ) WITHOUT ROWID;
+)sql";
+
+// What version 3 adds to version 2: who ran a job when (program version,
+// host), and the service's job queue (results/job_queue.h).
+constexpr const char* kSchemaVersion3 = R"sql(
+CREATE TABLE job_runs(
+  job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+  sequence INTEGER NOT NULL,
+  started_unix_s REAL NOT NULL,
+  program_version TEXT NOT NULL,
+  host TEXT NOT NULL,
+  pid INTEGER NOT NULL,
+  command TEXT NOT NULL,
+  PRIMARY KEY (job_id, sequence)
+) WITHOUT ROWID;
+CREATE TABLE job_queue(
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  name TEXT NOT NULL UNIQUE,
+  spec_json TEXT NOT NULL,
+  priority INTEGER NOT NULL,
+  submitted_unix_s REAL NOT NULL,
+  state TEXT NOT NULL,
+  start TEXT NOT NULL,
+  message TEXT NOT NULL DEFAULT ''
+);
 )sql";
 
 constexpr const char* kEvaluationColumns =
@@ -180,6 +206,7 @@ void ResultStore::Impl::OpenSchema() {
     if (std::stoll(db.QueryText("PRAGMA user_version", "create schema")) == 0) {
       db.Exec(kSchema, "create schema");
       db.Exec(kSchemaVersion2, "create schema");
+      db.Exec(kSchemaVersion3, "create schema");
       db.Exec(fmt::format("PRAGMA application_id={}; PRAGMA user_version={}", kApplicationId,
                           kSchemaVersion),
               "create schema (version)");
@@ -203,10 +230,10 @@ void ResultStore::Impl::Migrate(int64_t from) {
   const std::string op = fmt::format("migrate schema version {} to {}", from, kSchemaVersion);
   sqlite::Transaction tx(db, op);
   // Another process may have migrated it between the check and the lock.
-  if (std::stoll(db.QueryText("PRAGMA user_version", op)) == 1) {
-    db.Exec(kSchemaVersion2, op);
-    db.Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion), op);
-  }
+  const int64_t now = std::stoll(db.QueryText("PRAGMA user_version", op));
+  if (now < 2) db.Exec(kSchemaVersion2, op);
+  if (now < 3) db.Exec(kSchemaVersion3, op);
+  if (now < kSchemaVersion) db.Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion), op);
   tx.Commit();
   schema_version = kSchemaVersion;
 }
@@ -366,6 +393,47 @@ void ResultStore::SetJobSpec(int64_t job, const nlohmann::json& spec) {
   if (impl_->db.Changes() == 0) {
     throw StoreError(fmt::format("{}: {}: no job with id {}", path().string(), op, job));
   }
+}
+
+void ResultStore::DeleteJob(int64_t job) {
+  const std::string op = fmt::format("delete job {}", job);
+  sqlite::Transaction tx(impl_->db, op);
+  impl_->RequireJob(job, op);
+  // The other tables go with it (ON DELETE CASCADE).
+  auto s = impl_->db.Prepare("DELETE FROM jobs WHERE id = ?1", op);
+  s.Bind(1, job);
+  s.Run();
+  tx.Commit();
+}
+
+void ResultStore::RecordJobRun(int64_t job, const JobRunRecord& run) {
+  const std::string op = fmt::format("record a run of job {}", job);
+  if (impl_->schema_version < 3) {
+    throw StoreError(fmt::format("{}: {}: the store is read-only", path().string(), op));
+  }
+  sqlite::Transaction tx(impl_->db, op);
+  impl_->RequireJob(job, op);
+  auto s = impl_->db.Prepare(
+      "INSERT INTO job_runs(job_id, sequence, started_unix_s, program_version, host, pid, command) "
+      "VALUES (?1, (SELECT COALESCE(MAX(sequence), 0) + 1 FROM job_runs WHERE job_id = ?1), ?2, "
+      "?3, ?4, ?5, ?6)",
+      op);
+  s.Bind(1, job).Bind(2, run.started_unix_s).Bind(3, run.program_version).Bind(4, run.host);
+  s.Bind(5, run.pid).Bind(6, run.command);
+  s.Run();
+  tx.Commit();
+}
+
+std::vector<JobRunRecord> ResultStore::JobRuns(int64_t job) const {
+  std::vector<JobRunRecord> out;
+  if (impl_->schema_version < 3) return out;
+  auto s = impl_->db.Prepare(
+      "SELECT started_unix_s, program_version, host, pid, command FROM job_runs WHERE job_id = ?1 "
+      "ORDER BY sequence",
+      fmt::format("read runs of job {}", job));
+  s.Bind(1, job);
+  while (s.Step()) out.push_back({s.Double(0), s.Text(1), s.Text(2), s.Int(3), s.Text(4)});
+  return out;
 }
 
 // --------------------------------------------------------- lock, inputs

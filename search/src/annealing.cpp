@@ -94,6 +94,11 @@ class Annealing final : public Optimizer {
     return Done() ? fmt::format("budget of {} evaluations used", o_.max_evals) : "";
   }
 
+  std::optional<std::vector<int64_t>> AwaitedIds() const override { return batch_.AwaitedIds(); }
+  std::optional<IdCounts> Counts() const override {
+    return IdCounts{batch_.AskedTotal(), batch_.ToldTotal()};
+  }
+
   nlohmann::json SaveState() const override {
     return {{"rng", rng_.Save()},
             {"started", started_},

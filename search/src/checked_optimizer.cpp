@@ -222,6 +222,15 @@ void CheckedOptimizer::CheckRestoredCounts() const {
                       fmt::join(ids, ", "), fmt::join(*awaited, ", ")));
     }
   }
+  // (also found by fuzz_checkpoint: a grid state that counted 16 told of 14
+  // asked was taken, and the resumed search never ended).
+  if (const std::optional<Optimizer::IdCounts> counts = plugin_->Counts();
+      counts && (counts->asked != next_id_ || counts->told != told_count_)) {
+    throw std::invalid_argument(fmt::format(
+        "the optimiser's own state counts {} asked and {} told, the checkpoint {} asked and {} "
+        "told",
+        counts->asked, counts->told, next_id_, told_count_));
+  }
 }
 
 }  // namespace calib::search

@@ -94,8 +94,26 @@ class Cmaes final : public Optimizer {
     batch_.Reset(batch_.first_id + batch_.size(), {});
   }
 
-  bool Done() const override { return !stop_reason_.empty() && batch_.size() == 0; }
-  std::string StopReason() const override { return Done() ? stop_reason_ : ""; }
+  // The budget is checked here, not kept in the state: a job whose budget
+  // is extended (calib resume --budget) continues from a state that used
+  // the old one, as a run with the larger budget would have.
+  bool BudgetUsed() const { return evals_ + lambda_ > o_.max_evals; }
+  bool Done() const override {
+    return (BudgetUsed() || !stop_reason_.empty()) && batch_.size() == 0;
+  }
+  std::string StopReason() const override {
+    if (!Done()) return "";
+    if (BudgetUsed()) {
+      return fmt::format("budget: {} of max_evals = {} used (whole generations of {})", evals_,
+                         o_.max_evals, lambda_);
+    }
+    return stop_reason_;
+  }
+
+  std::optional<std::vector<int64_t>> AwaitedIds() const override { return batch_.AwaitedIds(); }
+  std::optional<IdCounts> Counts() const override {
+    return IdCounts{batch_.AskedTotal(), batch_.ToldTotal()};
+  }
 
   nlohmann::json SaveState() const override {
     return {{"rng", rng_.Save()},     {"generation", generation_}, {"evals", evals_},
@@ -118,6 +136,8 @@ class Cmaes final : public Optimizer {
     samples_ = MatrixFrom(s.at("samples"));
     batch_.Restore(s.at("batch"));
     stop_reason_ = s.at("stop_reason").get<std::string>();
+    // A state saved when the budget was kept in it.
+    if (stop_reason_.rfind("budget:", 0) == 0) stop_reason_.clear();
     if (mean_.size() != n_ || C_.rows() != n_ || C_.cols() != n_) {
       throw std::invalid_argument("cmaes state: dimension differs");
     }
@@ -185,10 +205,7 @@ class Cmaes final : public Optimizer {
     const VectorXd ev = eig.eigenvalues().cwiseMax(1e-300);
     D_ = ev.cwiseSqrt();
 
-    if (evals_ + lambda_ > o_.max_evals) {
-      stop_reason_ = fmt::format("budget: {} of max_evals = {} used (whole generations of {})",
-                                 evals_, o_.max_evals, lambda_);
-    } else if (sigma_ * D_.maxCoeff() < o_.tol_x) {
+    if (sigma_ * D_.maxCoeff() < o_.tol_x) {
       stop_reason_ = fmt::format("sigma * sqrt(max eig C) = {} < tol_x = {}",
                                  sigma_ * D_.maxCoeff(), o_.tol_x);
     } else if (ev.maxCoeff() > 1e14 * ev.minCoeff()) {

@@ -112,6 +112,19 @@ class ExternalOptimizer final : public Optimizer {
       }
       handed_ = state.at("handed").get<size_t>();
       if (handed_ > pending_.size()) throw std::invalid_argument("more handed out than asked");
+      // The batch holds the last ids asked of the program, in order (Counts
+      // relies on it).
+      const auto batch_size = static_cast<int64_t>(pending_.size());
+      if (asked_ < batch_size) {
+        throw std::invalid_argument(
+            fmt::format("{} asked but a batch of {} pending", asked_, batch_size));
+      }
+      for (int64_t k = 0; k < batch_size; ++k) {
+        if (pending_[k].id != asked_ - batch_size + k) {
+          throw std::invalid_argument(fmt::format("pending id {} is not the asked id {}",
+                                                  pending_[k].id, asked_ - batch_size + k));
+        }
+      }
       told_.clear();
       for (const auto& t : state.at("told")) {
         const int64_t id = t.at("id").get<int64_t>();
@@ -123,6 +136,15 @@ class ExternalOptimizer final : public Optimizer {
       throw std::invalid_argument(fmt::format("external: state is not this optimiser's: {}", e.what()));
     }
     Exchange({{"op", "restore"}, {"state", process_state}});
+  }
+
+  // Every id before the pending batch was handed out and told (a batch is
+  // cleared once all of it is told); of the batch, `handed_` were handed out
+  // and told_ holds those told.
+  std::optional<IdCounts> Counts() const override {
+    const int64_t before = asked_ - static_cast<int64_t>(pending_.size());
+    return IdCounts{before + static_cast<int64_t>(handed_),
+                    before + static_cast<int64_t>(told_.size())};
   }
 
   std::optional<std::vector<int64_t>> AwaitedIds() const override {

@@ -76,6 +76,10 @@ bool SeedIndependent(std::string_view name) {
   return std::find(std::begin(kNames), std::end(kNames), name) != std::end(kNames);
 }
 
+bool BudgetExtendsExactly(std::string_view name) {
+  return name == "random" || name == "cmaes" || name == "genetic";
+}
+
 nlohmann::json WithBudget(std::string_view name, nlohmann::json settings, int64_t evaluations) {
   if (settings.is_null()) settings = nlohmann::json::object();
   const std::string key = BudgetSetting(name);

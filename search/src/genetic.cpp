@@ -84,6 +84,11 @@ class Genetic final : public Optimizer {
     return Done() ? fmt::format("{} generations evolved", o_.generations) : "";
   }
 
+  std::optional<std::vector<int64_t>> AwaitedIds() const override { return batch_.AwaitedIds(); }
+  std::optional<IdCounts> Counts() const override {
+    return IdCounts{batch_.AskedTotal(), batch_.ToldTotal()};
+  }
+
   nlohmann::json SaveState() const override {
     return {{"rng", rng_.Save()},
             {"generation", generation_},

@@ -114,6 +114,8 @@ class Grid final : public Optimizer {
     return Done() ? fmt::format("{} grid points evaluated", budget_) : "";
   }
 
+  std::optional<IdCounts> Counts() const override { return IdCounts{asked_, told_}; }
+
   nlohmann::json SaveState() const override {
     return {{"asked", asked_}, {"told", told_}, {"level", level_}, {"counter", counter_}};
   }
@@ -123,6 +125,11 @@ class Grid final : public Optimizer {
     level_ = state.at("level").get<int>();
     counter_ = state.at("counter").get<std::vector<int>>();
     if (counter_.size() != axes_.size()) throw std::invalid_argument("grid state: bad counter");
+    if (!(0 <= told_ && told_ <= asked_ && asked_ <= budget_)) {
+      throw std::invalid_argument(fmt::format(
+          "grid state: told {} and asked {} are not 0 <= told <= asked <= {} points", told_,
+          asked_, budget_));
+    }
   }
 
  private:

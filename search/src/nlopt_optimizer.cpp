@@ -161,6 +161,10 @@ class NloptOptimizer final : public Optimizer {
     if (!pending_) return std::vector<int64_t>{};
     return std::vector<int64_t>{static_cast<int64_t>(stored_.size())};
   }
+  std::optional<IdCounts> Counts() const override {
+    const auto told = static_cast<int64_t>(stored_.size());
+    return IdCounts{told + (pending_ ? 1 : 0), told};
+  }
   std::string StopReason() const override { return Done() ? stop_reason_ : ""; }
 
   nlohmann::json SaveState() const override {

@@ -47,6 +47,8 @@ class RandomSearch final : public Optimizer {
     return Done() ? fmt::format("budget of {} evaluations used", options_.max_evals) : "";
   }
 
+  std::optional<IdCounts> Counts() const override { return IdCounts{asked_, told_}; }
+
   nlohmann::json SaveState() const override {
     return {{"rng", rng_.Save()}, {"asked", asked_}, {"told", told_}};
   }
@@ -54,6 +56,11 @@ class RandomSearch final : public Optimizer {
     rng_.Restore(state.at("rng"));
     asked_ = state.at("asked").get<int64_t>();
     told_ = state.at("told").get<int64_t>();
+    if (!(0 <= told_ && told_ <= asked_ && asked_ <= options_.max_evals)) {
+      throw std::invalid_argument(fmt::format(
+          "random state: told {} and asked {} are not 0 <= told <= asked <= max_evals {}", told_,
+          asked_, options_.max_evals));
+    }
   }
 
  private:

@@ -113,6 +113,19 @@ struct Batch {
     value[i] = e.failed ? std::numeric_limits<double>::infinity() : e.value;
   }
 
+  // The asked ids not told yet. Batches follow each other without gaps and
+  // a new one starts only when the last is complete, so the ids before
+  // first_id have all been told.
+  std::vector<int64_t> AwaitedIds() const {
+    std::vector<int64_t> ids;
+    for (int i = 0; i < asked; ++i) {
+      if (told[i] == 0) ids.push_back(first_id + i);
+    }
+    return ids;
+  }
+  int64_t AskedTotal() const { return first_id + asked; }
+  int64_t ToldTotal() const { return first_id + told_count; }
+
   nlohmann::json Save() const {
     nlohmann::json told_json = nlohmann::json::array();
     for (uint8_t t : told) told_json.push_back(t != 0);

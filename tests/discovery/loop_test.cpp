@@ -274,6 +274,44 @@ TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
             Numbers(other.report)["stages"][0]["parameters"]);
 }
 
+// A loop resumed in its folder continues the calibration jobs of its store
+// (scripts/kill-soak.py --loop kills one part way, again and again): here
+// every job had finished, so the resumed loop reads them back, simulates no
+// candidate again and reports the same numbers, at another thread count. A
+// stored job made with other options is named, not mixed in.
+TEST(Loop, AResumedLoopContinuesItsStoresJobsAndRefusesOtherOptions) {
+  LoopOptions options =
+      testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_resume");
+  options.simulation = SimulationOptions{};  // the paper's step: the cheapest
+  options.budget = 12;
+  options.max_effects = 0;
+  options.threads = 1;
+  const LoopResult first = RunLoop(options);
+  const auto stored_evaluations = [&] {
+    const ResultStore store(first.store);
+    size_t count = 0;
+    for (const JobInfo& job : store.Jobs()) count += store.Evaluations(job.id).size();
+    return count;
+  };
+  const size_t evaluations = stored_evaluations();
+  ASSERT_GE(evaluations, static_cast<size_t>(options.budget));
+  options.resume = true;
+  options.threads = 2;
+  const LoopResult resumed = RunLoop(options);
+  EXPECT_EQ(Numbers(first.report), Numbers(resumed.report));
+  EXPECT_EQ(first.table, resumed.table);
+  EXPECT_EQ(stored_evaluations(), evaluations) << "nothing simulated twice";
+  options.seed = 2;
+  try {
+    RunLoop(options);
+    ADD_FAILURE() << "a store of another seed was resumed";
+  } catch (const std::invalid_argument& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(first.store.string()), std::string::npos) << message;
+    EXPECT_NE(message.find("was made by a loop with other options"), std::string::npos) << message;
+  }
+}
+
 // The simulation chosen for the loop (by default the implicit step with
 // outline contact and contact friction; or the paper's) reaches every
 // calibration it stores and is stated in the report.

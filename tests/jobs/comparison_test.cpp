@@ -151,6 +151,7 @@ TEST(ComparisonSpec, RunsEachOptimizerOncePerSeedAndSeedIndependentOnesOnce) {
   EXPECT_EQ(spec.runs[7].job.optimizer.settings["resolution"], 3);
   EXPECT_EQ(spec.runs[7].job.optimizer.settings["max_evals"], 40) << "the budget filled in";
   EXPECT_EQ(spec.runs[4].job.seed, 5u);
+  EXPECT_EQ(spec.out_dir, fs::absolute(out).lexically_normal());
   EXPECT_EQ(spec.store, fs::absolute(out).lexically_normal() / "comparison.sqlite");
   for (const ComparisonRun& r : spec.runs) EXPECT_EQ(r.job.results.store, spec.store) << r.job.name;
   EXPECT_EQ(spec.budget_evaluations, 40);
@@ -163,6 +164,12 @@ TEST(ComparisonSpec, RunsEachOptimizerOncePerSeedAndSeedIndependentOnesOnce) {
 
   const ComparisonSpec defaults = Parse(ComparisonYaml(""), out);
   EXPECT_EQ(defaults.seeds.size(), 15u) << "15 seeds by default";
+  // No folder given: out/compare/<name>/ in the current folder, as every
+  // output's default place is under out/.
+  const ComparisonSpec default_place = Parse(ComparisonYaml("seeds: 1\n"), fs::path());
+  EXPECT_EQ(default_place.out_dir, (fs::absolute("out/compare") / "cmp").lexically_normal());
+  EXPECT_EQ(default_place.store, default_place.out_dir / "comparison.sqlite");
+  EXPECT_EQ(default_place.runs[0].job.results.out_dir, default_place.out_dir / "runs" / "cmp.random.s1");
   EXPECT_EQ(defaults.runs.size(), 15u + 15u + 1u + 1u);
   const ComparisonSpec absolute = Parse(ComparisonYaml("seeds: 2\ntargets: {absolute: [1, 0.5]}\n"), out);
   EXPECT_EQ(absolute.seeds, (std::vector<uint64_t>{1, 2}));

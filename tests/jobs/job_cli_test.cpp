@@ -43,21 +43,9 @@ const std::string kCalib = CALIB_EXE;
 // The job: CMA-ES over the base model on examples/push_centre with 40 px
 // mesh edges and 4 substeps; 64 evaluations in generations of 4.
 std::string JobYaml(const std::string& name) {
-  return fmt::format(R"yaml(
-name: {}
-train: [{}]
-model:
-  substeps: 4
-  mesh: {{edge_length_px: 40}}
-{}optimizer: {{name: cmaes, settings: {{population: 4, initial_sigma: 0.3}}}}
-budget: {{evaluations: 64}}
-seed: 3
-threads: 2
-checkpoint: {{every_evaluations: 4, every_seconds: 0}}
-results: {{store: {}.sqlite, out_dir: {}_out}}
-)yaml",
-                     name, (fs::path(CALIB_SOURCE_DIR) / "examples" / "push_centre").string(),
-                     testing::kBaseParametersYaml, name, name);
+  return testing::SmallPushJobYaml(
+      name, (fs::path(CALIB_SOURCE_DIR) / "examples" / "push_centre").string(), 3, 64,
+      fmt::format("results: {{store: {}.sqlite, out_dir: {}_out}}", name, name));
 }
 
 std::vector<EvaluationRecord> History(const fs::path& db, const std::string& name = "cli_job") {
@@ -375,6 +363,86 @@ TEST_F(JobCli, RunTwiceAndResumeAFinishedJobSayWhatToDo) {
       {kCalib, "best", "nosuchjob", "--store", db, "--out", (dir / "p.json").string()}, dir);
   EXPECT_EQ(absent.exit_code, 2);
   EXPECT_CONTAINS(absent.err, "no job 'nosuchjob' (jobs there: cli_job)");
+}
+
+// calib `args` (with the suite's cache) run in the folder `cwd`.
+std::vector<std::string> InFolder(const fs::path& cwd, std::vector<std::string> args) {
+  args.insert(args.begin(), {"/bin/sh", "-c", "cd \"$0\" && exec \"$@\"", cwd.string()});
+  return args;
+}
+
+TEST_F(JobCli, ValidateFreshSeedNameBudgetAndTheResumeCommandOfAStoppedRun) {
+  const fs::path dir = testing::ScratchDir("job_cli_manage");
+  std::string text = JobYaml("cli_job");
+  const std::string results = "results: {store: cli_job.sqlite, out_dir: cli_job_out}";
+  ASSERT_NE(text.find(results), std::string::npos);
+  text.erase(text.find(results), results.size());  // the default places, under out/
+  const fs::path spec = dir / "spec" / "job.yaml";
+  fs::create_directories(spec.parent_path());
+  std::ofstream(spec) << text;
+  const fs::path store = dir / "out" / "jobs" / "cli_job.sqlite";
+
+  const testing::ProcessResult valid =
+      testing::RunProcess(InFolder(dir, {kCalib, "validate", spec.string()}), dir);
+  EXPECT_EQ(valid.exit_code, 0) << valid.err;
+  EXPECT_CONTAINS(valid.out, "valid: job 'cli_job', 5 searched parameters, optimiser cmaes, 64 evaluations");
+  EXPECT_CONTAINS(valid.out, "store: " + store.string());
+  EXPECT_FALSE(fs::exists(dir / "out")) << "validate writes nothing";
+
+  // A finished job extended with a larger budget: the history of the
+  // uninterrupted reference run at that budget.
+  const testing::ProcessResult small = testing::RunProcess(
+      InFolder(dir, Args({"run", spec.string(), "--budget", "16", "--no-report", "--progress", "none"})),
+      dir);
+  ASSERT_EQ(small.exit_code, 0) << small.err;
+  EXPECT_EQ(EvaluationCount(store), 16);
+  const testing::ProcessResult extended = testing::RunProcess(
+      InFolder(dir, Args({"resume", spec.string(), "--budget", "32", "--no-report", "--progress", "none"})),
+      dir);
+  ASSERT_EQ(extended.exit_code, 0) << extended.err;
+  std::vector<EvaluationRecord> first32 = ReferenceHistory();
+  first32.resize(32);  // CMA-ES proposes the same whatever its budget
+  testing::ExpectSameHistory(first32, History(store), "extended from 16 to 32");
+  const testing::ProcessResult shown =
+      testing::RunProcess(InFolder(dir, {kCalib, "results", spec.string()}), dir);
+  EXPECT_CONTAINS(shown.out, "resume --budget 32: ");
+  EXPECT_CONTAINS(shown.out, "by calib ");
+
+  // Again: refused, naming --fresh; --fresh starts over, with --seed.
+  const testing::ProcessResult again = testing::RunProcess(
+      InFolder(dir, Args({"run", spec.string(), "--no-report", "--progress", "none"})), dir);
+  EXPECT_EQ(again.exit_code, 2);
+  EXPECT_CONTAINS(again.err, "calib run --fresh");
+  const testing::ProcessResult fresh = testing::RunProcess(
+      InFolder(dir, Args({"run", spec.string(), "--fresh", "--seed", "3", "--budget", "8",
+                          "--no-report", "--progress", "none"})),
+      dir);
+  ASSERT_EQ(fresh.exit_code, 0) << fresh.err;
+  std::vector<EvaluationRecord> first8 = ReferenceHistory();
+  first8.resize(8);
+  testing::ExpectSameHistory(first8, History(store), "fresh, seed 3 as the spec's");
+  const testing::ProcessResult reseeded = testing::RunProcess(
+      InFolder(dir, Args({"run", spec.string(), "--fresh", "--seed", "4", "--budget", "8",
+                          "--no-report", "--progress", "none"})),
+      dir);
+  ASSERT_EQ(reseeded.exit_code, 0) << reseeded.err;
+  EXPECT_NE(History(store).at(0).x, first8.at(0).x) << "--seed 4 searches elsewhere";
+
+  // A stopped run prints the command that continues it, overrides and all.
+  const testing::ProcessResult stopped = testing::RunProcess(
+      InFolder(dir, Args({"run", spec.string(), "--name", "renamed", "--budget", "8", "--wall-time",
+                          "0.001", "--no-report", "--progress", "none"})),
+      dir);
+  EXPECT_EQ(stopped.exit_code, 4) << stopped.err;
+  const std::string resume_command = "calib resume " + spec.string() + " --name renamed --budget 8";
+  EXPECT_CONTAINS(stopped.out, "continue it with: " + resume_command);
+  EXPECT_TRUE(fs::exists(dir / "out" / "jobs" / "renamed.sqlite")) << "the default store follows --name";
+  const testing::ProcessResult resumed = testing::RunProcess(
+      InFolder(dir, Args({"resume", spec.string(), "--name", "renamed", "--budget", "8",
+                          "--no-report", "--progress", "none"})),
+      dir);
+  EXPECT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_EQ(EvaluationCount(dir / "out" / "jobs" / "renamed.sqlite", "renamed"), 8);
 }
 
 TEST_F(JobCli, BadJobSpecIsNamedByFileFieldAndValue) {

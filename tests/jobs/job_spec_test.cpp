@@ -159,8 +159,43 @@ budget: {evaluations: 30}
   EXPECT_EQ(spec.optimizer.settings["maxeval"], 30);
   EXPECT_EQ(spec.failure_policy.mode, FailureMode::kPenalty);
   EXPECT_EQ(spec.failure_policy.abort_after, 0);
-  EXPECT_EQ(spec.results.store, (fs::absolute(dir) / "results/minimal.sqlite").lexically_normal());
-  EXPECT_EQ(spec.results.out_dir, (fs::absolute(dir) / "results/minimal").lexically_normal());
+  // Every output's default place is under out/ in the current folder.
+  EXPECT_EQ(spec.results.store, (fs::absolute("out/jobs") / "minimal.sqlite").lexically_normal());
+  EXPECT_EQ(spec.results.out_dir, (fs::absolute("out/jobs") / "minimal").lexically_normal());
+  EXPECT_EQ(spec.results.earlier_default_store, fs::absolute(dir) / "results/minimal.sqlite")
+      << "where a job stored before the out/ default is looked for";
+}
+
+TEST(JobSpec, OverridesReplaceTheSpecsValuesAndAreCheckedByItsRules) {
+  const fs::path dir = MakeJobFolder("job_spec_overrides");
+  JobSpecParseOptions options;
+  options.overrides.name = "renamed";
+  options.overrides.seed = 77;
+  options.overrides.budget_evaluations = 240;
+  options.results_root = dir / "elsewhere";
+  const JobSpec spec = ParseJobSpec(std::string(kValidSpec), "job.yaml", dir, options);
+  EXPECT_EQ(spec.name, "renamed");
+  EXPECT_EQ(spec.seed, 77u);
+  EXPECT_EQ(spec.budget.evaluations, 240);
+  EXPECT_EQ(spec.optimizer.settings["max_evals"], 240) << "the optimiser's own budget follows";
+  EXPECT_EQ(spec.results.store, (fs::absolute(dir) / "out/push_test.sqlite").lexically_normal())
+      << "a store the spec names is kept";
+
+  options.overrides.name = "bad name!";
+  try {
+    (void)ParseJobSpec(std::string(kValidSpec), "job.yaml", dir, options);
+    ADD_FAILURE() << "an invalid --name was accepted";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "job.yaml: name = 'bad name!' (given with --name)");
+  }
+  options.overrides.name.reset();
+  options.overrides.budget_evaluations = 0;
+  try {
+    (void)ParseJobSpec(std::string(kValidSpec), "job.yaml", dir, options);
+    ADD_FAILURE() << "--budget 0 was accepted";
+  } catch (const JobSpecError& e) {
+    EXPECT_CONTAINS(e.what(), "budget.evaluations = 0 (given with --budget): must be >= 1");
+  }
 }
 
 TEST(JobSpec, LoadResolvesPathsAgainstTheFileFolder) {

@@ -102,6 +102,24 @@ seed: 7
   return ParseJobSpec(text, "synthetic.yaml", std::filesystem::temp_directory_path(), options);
 }
 
+std::string SmallPushJobYaml(const std::string& name, const std::string& push_centre, int seed,
+                             int budget, const std::string& results) {
+  return fmt::format(R"yaml(
+name: {}
+train: [{}]
+model:
+  substeps: 4
+  mesh: {{edge_length_px: 40}}
+{}optimizer: {{name: cmaes, settings: {{population: 4, initial_sigma: 0.3}}}}
+budget: {{evaluations: {}}}
+seed: {}
+threads: 2
+checkpoint: {{every_evaluations: 4, every_seconds: 0}}
+{}
+)yaml",
+                     name, push_centre, kBaseParametersYaml, budget, seed, results);
+}
+
 void ExpectSameHistory(const std::vector<EvaluationRecord>& expected,
                        const std::vector<EvaluationRecord>& actual, const std::string& what) {
   ASSERT_EQ(expected.size(), actual.size()) << what << ": evaluations";

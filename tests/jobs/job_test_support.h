@@ -52,6 +52,14 @@ extern const char* const kBaseParametersYaml;
 JobSpec SyntheticJobSpec(const std::string& optimizer, const std::string& extra = "",
                          const std::string& name = "synthetic");
 
+/// The YAML of a small real job: CMA-ES (generations of 4) over the base
+/// model on the bundled centre push `push_centre` (a folder path) with
+/// 40 px mesh edges and 4 substeps, `budget` evaluations at `seed`, 2
+/// threads, a checkpoint every 4 evaluations; `results` is the YAML of its
+/// results line ("" for none).
+std::string SmallPushJobYaml(const std::string& name, const std::string& push_centre, int seed,
+                             int budget, const std::string& results);
+
 /// Expects the two histories to be the same: every field of every
 /// evaluation bit for bit, except the timing (eval_time_s,
 /// recorded_unix_s) and who evaluated it (worker). `what` labels failures.

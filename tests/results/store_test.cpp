@@ -512,8 +512,11 @@ TEST(ResultStore, AVersion1StoreIsMigratedWhenOpenedForWriting) {
     const int64_t job = store.CreateJob("job", kSpec);
     store.RecordEvaluations(job, std::vector<EvaluationRecord>{MakeRecord(0, 5.0)});
   }
-  // What a version 1 build wrote: no job_locks, no job_inputs.
-  RawSql(dir / "r.sqlite", "DROP TABLE job_locks; DROP TABLE job_inputs; PRAGMA user_version=1");
+  // What a version 1 build wrote: no job_locks, no job_inputs (nor what
+  // version 3 adds).
+  RawSql(dir / "r.sqlite",
+         "DROP TABLE job_locks; DROP TABLE job_inputs; DROP TABLE job_runs; DROP TABLE job_queue; "
+         "PRAGMA user_version=1");
   StoreOptions read_only;
   read_only.read_only = true;
   {
@@ -525,12 +528,77 @@ TEST(ResultStore, AVersion1StoreIsMigratedWhenOpenedForWriting) {
     EXPECT_TRUE(reader.JobInputs(job).empty());
   }
   ResultStore store(dir / "r.sqlite");
-  EXPECT_EQ(store.SchemaVersion(), 2);
+  EXPECT_EQ(store.SchemaVersion(), 3);
   const int64_t job = store.FindJob("job")->id;
   EXPECT_EQ(store.EvaluationCount(job), 1) << "nothing lost";
   EXPECT_FALSE(store.AcquireJobLock(job, Claim(1, "t"), [](const JobLock&, double) { return false; })
                    .has_value());
-  EXPECT_EQ(ResultStore(dir / "r.sqlite", read_only).SchemaVersion(), 2);
+  EXPECT_EQ(ResultStore(dir / "r.sqlite", read_only).SchemaVersion(), 3);
+}
+
+TEST(ResultStore, AVersion2StoreIsMigratedAndKeepsEverything) {
+  const fs::path dir = testing::ScratchDir("store_v2");
+  {
+    ResultStore store(dir / "r.sqlite");
+    const int64_t job = store.CreateJob("job", kSpec);
+    store.RecordEvaluations(job, std::vector<EvaluationRecord>{MakeRecord(0, 5.0), MakeRecord(1, 4.0)});
+    CheckpointRecord cp;
+    cp.evaluations_done = 2;
+    cp.state = {{"k", 1}};
+    store.SaveCheckpoint(job, cp);
+  }
+  // What a version 2 build wrote: no job_runs, no job_queue.
+  RawSql(dir / "r.sqlite", "DROP TABLE job_runs; DROP TABLE job_queue; PRAGMA user_version=2");
+  StoreOptions read_only;
+  read_only.read_only = true;
+  {
+    ResultStore reader(dir / "r.sqlite", read_only);
+    EXPECT_EQ(reader.SchemaVersion(), 2);
+    EXPECT_TRUE(reader.JobRuns(reader.FindJob("job")->id).empty()) << "read as it is";
+  }
+  ResultStore store(dir / "r.sqlite");
+  EXPECT_EQ(store.SchemaVersion(), 3);
+  const int64_t job = store.FindJob("job")->id;
+  EXPECT_EQ(store.EvaluationCount(job), 2) << "nothing lost";
+  EXPECT_EQ(store.Best(job)->id, 1);
+  EXPECT_EQ(store.CheckpointCount(job), 1);
+  store.RecordJobRun(job, {1.5e9, "calib 1.2.3", "host-a", 42, "resume"});
+  const std::vector<JobRunRecord> runs = store.JobRuns(job);
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].started_unix_s, 1.5e9);
+  EXPECT_EQ(runs[0].program_version, "calib 1.2.3");
+  EXPECT_EQ(runs[0].host, "host-a");
+  EXPECT_EQ(runs[0].pid, 42);
+  EXPECT_EQ(runs[0].command, "resume");
+}
+
+TEST(ResultStore, DeleteJobRemovesEverythingOfItAndNothingElse) {
+  const fs::path dir = testing::ScratchDir("store_delete");
+  ResultStore store(dir / "r.sqlite");
+  const int64_t gone = store.CreateJob("gone", kSpec);
+  const int64_t kept = store.CreateJob("kept", kSpec);
+  for (const int64_t job : {gone, kept}) {
+    store.RecordEvaluations(job, std::vector<EvaluationRecord>{MakeRecord(0, 5.0)});
+    CheckpointRecord cp;
+    cp.evaluations_done = 1;
+    cp.state = {{"k", 1}};
+    store.SaveCheckpoint(job, cp);
+    store.RecordJobRun(job, {1.0, "calib", "h", 1, "run"});
+    store.SetJobInputs(job, std::vector<InputFingerprint>{{"rec/recording.json", 10, 7}});
+  }
+  store.DeleteJob(gone);
+  EXPECT_FALSE(store.FindJob("gone").has_value());
+  EXPECT_EQ(store.EvaluationCount(gone), 0);
+  EXPECT_EQ(store.CheckpointCount(gone), 0);
+  EXPECT_TRUE(store.JobRuns(gone).empty());
+  EXPECT_TRUE(store.JobInputs(gone).empty());
+  EXPECT_EQ(store.EvaluationCount(kept), 1);
+  EXPECT_EQ(store.CheckpointCount(kept), 1);
+  EXPECT_EQ(store.JobRuns(kept).size(), 1u);
+  EXPECT_EQ(store.JobInputs(kept).size(), 1u);
+  EXPECT_THROW(store.DeleteJob(gone), StoreError) << "an unknown id is named";
+  const int64_t again = store.CreateJob("gone", kSpec);
+  EXPECT_EQ(store.EvaluationCount(again), 0) << "the name is free again";
 }
 
 }  // namespace

@@ -114,6 +114,17 @@ TEST(CheckedOptimizer, BestTiesGoToTheLowestIdWhateverTheArrivalOrder) {
   EXPECT_EQ(opt.Best()->id, 1);
 }
 
+// What RestoreState of `state` into `fresh` throws as std::invalid_argument,
+// or "(restored)".
+std::string RestoreError(CheckedOptimizer fresh, const nlohmann::json& state) {
+  try {
+    fresh.RestoreState(state);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "(restored)";
+}
+
 // Found by fuzz/fuzz_checkpoint: an NLopt checkpoint whose outstanding id
 // was one already told (3 -> 1) was restored, and the resumed run's first
 // Tell threw std::logic_error (a plug-in bug) instead of the restore
@@ -131,14 +142,9 @@ TEST(CheckedOptimizer, RestoreRefusesAStateWhosePartsDisagree) {
   }();
   ASSERT_EQ(saved.at("outstanding").at(0).at("id"), 3);
   const auto error_of = [](const nlohmann::json& state) {
-    CheckedOptimizer fresh = MakeOptimizer("nlopt:SBPLX", nlohmann::json{{"maxeval", 48}},
-                                           testing::Box(2, 0, 1), 7);
-    try {
-      fresh.RestoreState(state);
-    } catch (const std::invalid_argument& e) {
-      return std::string(e.what());
-    }
-    return std::string("(restored)");
+    return RestoreError(
+        MakeOptimizer("nlopt:SBPLX", nlohmann::json{{"maxeval", 48}}, testing::Box(2, 0, 1), 7),
+        state);
   };
   EXPECT_EQ(error_of(saved), "(restored)");
   nlohmann::json told_id = saved;
@@ -159,6 +165,63 @@ TEST(CheckedOptimizer, RestoreRefusesAStateWhosePartsDisagree) {
   outside["outstanding"][0]["x"][1] = 1.5;
   EXPECT_NE(error_of(outside).find("coordinate 1 = 1.5 is outside the bounds"), std::string::npos)
       << error_of(outside);
+}
+
+// Every optimiser's own state says how many candidates it handed out and how
+// many results it was told; a checkpoint whose wrapper part adds up but
+// disagrees with it is refused at the restore (fuzz_checkpoint found a grid
+// state counting 16 told of 14 asked that was taken, and the resumed search
+// never ended).
+TEST(CheckedOptimizer, RestoreRefusesAPlugInStateThatCountsOtherwise) {
+  const std::vector<std::pair<std::string, nlohmann::json>> optimizers = {
+      {"grid", nlohmann::json::object({{"resolution", 4}})},
+      {"random", nlohmann::json::object({{"max_evals", 40}})},
+      {"genetic", nlohmann::json::object({{"population", 6}, {"generations", 6}})},
+      {"annealing", nlohmann::json::object({{"max_evals", 40}})},
+      {"cmaes", nlohmann::json::object({{"max_evals", 40}})},
+      {"nlopt:SBPLX", nlohmann::json::object({{"maxeval", 40}})}};
+  for (const auto& [name, settings] : optimizers) {
+    SCOPED_TRACE(name);
+    const auto make = [&] { return MakeOptimizer(name, settings, testing::Box(2, 0, 1), 3); };
+    // Some results told, one candidate still outstanding.
+    CheckedOptimizer opt = make();
+    for (int i = 0; i < 3; ++i) {
+      const std::vector<Candidate> c = opt.Ask(1);
+      ASSERT_EQ(c.size(), 1u);
+      opt.Tell(testing::Evaluate(testing::Sphere, c[0]));
+    }
+    ASSERT_EQ(opt.Ask(1).size(), 1u);
+    const nlohmann::json saved = opt.SaveState();
+    const auto error_of = [&](const nlohmann::json& state) { return RestoreError(make(), state); };
+    EXPECT_EQ(error_of(saved), "(restored)");
+    // Two more told in the wrapper's part (which still adds up), none in
+    // the optimiser's own.
+    nlohmann::json more_told = saved;
+    more_told["told"] = more_told["told"].get<int64_t>() + 2;
+    more_told["next_id"] = more_told["next_id"].get<int64_t>() + 2;
+    for (auto& o : more_told["outstanding"]) o["id"] = o["id"].get<int64_t>() + 2;
+    const std::string error = error_of(more_told);
+    EXPECT_TRUE(error.find("the optimiser's own state counts 4 asked and 3 told, the checkpoint "
+                           "6 asked and 5 told") != std::string::npos ||
+                error.find("are not the ones the optimiser's own state waits for") !=
+                    std::string::npos)
+        << error;
+  }
+}
+
+// The state fuzz_checkpoint found: the grid's own part counts more told
+// than asked.
+TEST(CheckedOptimizer, AGridStateWithMoreToldThanAskedIsRefused) {
+  const auto make = [] {
+    return MakeOptimizer("grid", {{"resolution", 4}}, testing::Box(2, 0, 1), 0);
+  };
+  CheckedOptimizer opt = make();
+  for (int i = 0; i < 2; ++i) opt.Tell(testing::Evaluate(testing::Sphere, opt.Ask(1).at(0)));
+  nlohmann::json state = opt.SaveState();
+  state["plugin"]["told"] = 5;
+  const std::string error = RestoreError(make(), state);
+  EXPECT_NE(error.find("told 5 and asked 2 are not 0 <= told <= asked"), std::string::npos)
+      << error;
 }
 
 }  // namespace

@@ -71,6 +71,53 @@ TEST(ExternalOptimizer, RestoredMidBatchItContinuesAsIfUninterrupted) {
   EXPECT_TRUE(testing::SameCandidates(reference.asked, asked, &why)) << why;
 }
 
+// The external optimiser's own state says what it asked and was told
+// (Optimizer::Counts, AwaitedIds), so a checkpoint whose wrapper part adds
+// up but disagrees with it is refused at the restore, as for the others
+// (CheckedOptimizer.RestoreRefusesAPlugInStateThatCountsOtherwise).
+TEST(ExternalOptimizer, RestoreRefusesAStateThatCountsOtherwise) {
+  const auto error_of = [](const nlohmann::json& state) -> std::string {
+    CheckedOptimizer opt = Make(FakeSettings({"good"}));
+    try {
+      opt.RestoreState(state);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "(restored)";
+  };
+  CheckedOptimizer opt = Make(FakeSettings({"good"}));
+  for (int i = 0; i < 3; ++i) opt.Tell(testing::Evaluate(testing::Sphere, opt.Ask(1).at(0)));
+  const nlohmann::json between = opt.SaveState();  // a whole batch told, none pending
+  ASSERT_EQ(opt.Ask(1).size(), 1u);
+  const nlohmann::json mid = opt.SaveState();  // the next batch asked, one handed out
+  EXPECT_EQ(error_of(between), "(restored)");
+  EXPECT_EQ(error_of(mid), "(restored)");
+
+  nlohmann::json more_told = between;  // two more told in the wrapper's part only
+  more_told["next_id"] = 5;
+  more_told["told"] = 5;
+  std::string error = error_of(more_told);
+  EXPECT_NE(error.find("the optimiser's own state counts 3 asked and 3 told, the checkpoint 5 "
+                       "asked and 5 told"),
+            std::string::npos)
+      << error;
+
+  nlohmann::json other_id = mid;  // the wrapper awaits id 5, the external optimiser id 3
+  other_id["next_id"] = 6;
+  other_id["told"] = 5;
+  other_id["outstanding"][0]["id"] = 5;
+  error = error_of(other_id);
+  EXPECT_NE(error.find("outstanding ids [5] are not the ones the optimiser's own state waits for "
+                       "([3])"),
+            std::string::npos)
+      << error;
+
+  nlohmann::json shifted = mid;  // its pending batch's ids are not the last asked
+  shifted["plugin"]["pending"][0]["id"] = 7;
+  error = error_of(shifted);
+  EXPECT_NE(error.find("pending id 7 is not the asked id 3"), std::string::npos) << error;
+}
+
 // The error a misbehaving fake gives while a run asks and tells.
 ExternalOptimizerError ErrorOf(const std::vector<std::string>& args, double timeout_s = 5.0) {
   nlohmann::json settings = FakeSettings(args);

@@ -50,6 +50,12 @@ struct LoopOptions {
   std::vector<std::filesystem::path> train;    ///< >= 1 recording folders (fitted)
   std::vector<std::filesystem::path> holdout;  ///< recording folders (decide, never fitted)
   std::filesystem::path out_dir;               ///< report.json, report.html, store.sqlite, overlays/
+  /// Keep out_dir's store and continue the calibration jobs it holds (each
+  /// from its last checkpoint; finished ones are read back): a loop killed
+  /// part way and resumed with the same options ends with the numbers of an
+  /// uninterrupted one. A stored job made by other options is an error.
+  /// false: the store is started afresh.
+  bool resume = false;
   uint64_t seed = 1;
   /// Evaluations of the base model's calibration.
   int64_t budget = 160;

@@ -36,6 +36,9 @@ struct ComparisonOptions {
   /// analytic objectives.
   ObjectiveFactory make_objective;
   ComparisonReportOptions report;
+  /// Recorded with each run of a job (JobCommandOptions::program_version),
+  /// the command as "compare-optimizers".
+  std::string program_version = "calib";
 };
 
 struct ComparisonResult {

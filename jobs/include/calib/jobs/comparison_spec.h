@@ -57,7 +57,8 @@ struct ComparisonSpec {
   std::vector<uint64_t> seeds;                ///< >= 1, distinct
   ComparisonTargets targets;
   int64_t budget_evaluations = 0;             ///< per run
-  std::filesystem::path store;                ///< <out>/comparison.sqlite
+  std::filesystem::path out_dir;              ///< absolute; default out/compare/<name>/
+  std::filesystem::path store;                ///< <out_dir>/comparison.sqlite
   std::vector<ComparisonRun> runs;            ///< optimiser-major, then seed order
 
   /// The canonical JSON of the comparison (its keys and every run's
@@ -65,9 +66,16 @@ struct ComparisonSpec {
   nlohmann::json ToJson() const;
 };
 
+/// Where a comparison's results go when no folder is given:
+/// kDefaultComparisonRoot/<name>/, relative to the current folder (as every
+/// output of calib has its default place under out/).
+inline const std::filesystem::path kDefaultComparisonRoot = "out/compare";
+
 /// Reads and validates a comparison spec; the runs' results go to
-/// `out_dir` (the store `out_dir/comparison.sqlite`). Relative paths in the
-/// spec are resolved against its folder. `options` as for job specs.
+/// `out_dir` (the store `out_dir/comparison.sqlite`), or when it is empty to
+/// kDefaultComparisonRoot/<name>/ (ComparisonSpec::out_dir says which).
+/// Relative paths in the spec are resolved against its folder. `options` as
+/// for job specs.
 ComparisonSpec LoadComparisonSpec(const std::filesystem::path& path,
                                   const std::filesystem::path& out_dir,
                                   const JobSpecParseOptions& options = {});

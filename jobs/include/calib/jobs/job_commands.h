@@ -8,12 +8,19 @@
 // run:    creates the job in the store (an existing job of that name with
 //         evaluations is an error: resume it), records the fingerprints of
 //         its recordings (job_inputs.h), then runs it.
+//         With `fresh`, a job of that name is deleted first (refused while
+//         a live process holds it).
 // resume: finds the job, checks that the spec is the one it was started
 //         with (only threads, processes, checkpoint, budget.wall_time_s and
-//         results may change: they do not change the history) and that its
-//         recordings are unchanged (naming every file that changed), and
-//         continues from the newest intact checkpoint. A finished or aborted
-//         job is left as it is (its report is written again).
+//         results may change: they do not change the history; and
+//         budget.evaluations may grow, with the optimiser's own budget
+//         setting, for the optimisers search::BudgetExtendsExactly names)
+//         and that its recordings are unchanged (naming every file that
+//         changed), and continues from the newest intact checkpoint. A
+//         finished or aborted job is left as it is (its report is written
+//         again), unless its budget grew: a finished job then continues to
+//         the history a run with the larger budget gives.
+// Both record the run (program version, host, time, command) in the store.
 // Both hold the job's lock (job_lock.h) from before they change anything
 // until they end: a job another live process works on is refused, naming
 // that process.
@@ -77,6 +84,17 @@ struct JobCommandOptions {
   ObjectiveFactory make_objective;
   /// Set when launched by MPI with several ranks (see MpiSession).
   const MpiSession* mpi = nullptr;
+  /// run: delete a job of the same name first (start over).
+  bool fresh = false;
+  /// Recorded with the run (ResultStore::RecordJobRun): "calib 0.1.0", and
+  /// what started it ("run", "resume", "serve").
+  std::string program_version = "calib";
+  std::string command;
+  /// SIGINT, SIGTERM and SIGHUP stop the run resumably. False: they are left
+  /// alone (a server that runs several jobs handles them itself).
+  bool handle_signals = true;
+  /// Polled between candidates: true stops the run resumably. Null: never.
+  std::function<bool()> interrupted;
 };
 
 struct JobCommandResult {
@@ -97,6 +115,13 @@ struct JobCommandResult {
 /// process: JobLockedError, and nothing of the job changes.
 JobCommandResult RunJob(const JobSpec& spec, JobStart start, const JobCommandOptions& options);
 
+/// The store of `spec`: `store` when given, else the spec's results.store,
+/// or, when the spec gives none and that store does not exist, the store at
+/// the default place of earlier builds (results/<name>.sqlite beside the
+/// spec) when it holds the job.
+std::filesystem::path ResolveStorePath(const JobSpec& spec,
+                                       const std::optional<std::filesystem::path>& store);
+
 /// Where a job lives for `calib results` / `calib best`: JOB is a job spec
 /// file (its results.store and name) or a job name with `store` given.
 struct JobLocation {
@@ -105,7 +130,9 @@ struct JobLocation {
 };
 /// Throws std::invalid_argument when JOB is not a spec file and no store is
 /// given; JobSpecError for a bad spec.
-JobLocation LocateJob(const std::string& job, const std::optional<std::filesystem::path>& store);
+/// `overrides` as the job was run with (its --name decides its default store).
+JobLocation LocateJob(const std::string& job, const std::optional<std::filesystem::path>& store,
+                      const JobSpecOverrides& overrides = {});
 
 /// Opens the store read-only and finds the job; StoreError naming the store
 /// and the job (and the jobs it holds) when absent.

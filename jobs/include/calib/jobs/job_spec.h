@@ -75,10 +75,15 @@ struct ModelSpec {
 };
 
 struct ResultsSpec {
-  /// The SQLite results store. Default: <spec folder>/results/<name>.sqlite.
+  /// The SQLite results store. Default: out/jobs/<name>.sqlite under the
+  /// current folder (JobSpecParseOptions::results_root).
   std::filesystem::path store;
-  /// Reports, best parameters, overlays. Default: <spec folder>/results/<name>.
+  /// Reports, best parameters, overlays. Default: out/jobs/<name>/.
   std::filesystem::path out_dir;
+  /// Set when the spec gives no store: where builds before the out/ default
+  /// put it (<spec folder>/results/<name>.sqlite), so that a job stored
+  /// there is found and named rather than started again elsewhere.
+  std::filesystem::path earlier_default_store;
 };
 
 /// The request's `name` is the job's (letters, digits, '_', '-', '.';
@@ -108,8 +113,20 @@ enum class RecordingCheck {
   kExists,  ///< each folder exists and holds recording.json (default)
 };
 
+/// Values that replace the spec's (`calib run --name/--seed/--budget`),
+/// checked by the spec's own rules and named as the field they replace.
+struct JobSpecOverrides {
+  std::optional<std::string> name;
+  std::optional<uint64_t> seed;
+  std::optional<int64_t> budget_evaluations;
+};
+
 struct JobSpecParseOptions {
   RecordingCheck recordings = RecordingCheck::kExists;
+  JobSpecOverrides overrides;
+  /// The default results.store is <results_root>/<name>.sqlite and
+  /// results.out_dir <results_root>/<name>/; relative: to the current folder.
+  std::filesystem::path results_root = "out/jobs";
   /// The catalog parameters and effects are validated against; null: the
   /// default catalog.
   const ModelCatalog* catalog = nullptr;

@@ -3,8 +3,9 @@
 // evaluation of every job, and checkpoints. The store owns persistence; the
 // runner owns what goes in.
 //
-// Tables (schema version 2, PRAGMA user_version; a version 1 store, which
-// lacks job_locks and job_inputs, is migrated when opened for writing):
+// Tables (schema version 3, PRAGMA user_version; a version 1 store, which
+// lacks job_locks and job_inputs, or a version 2 store, which lacks job_runs
+// and job_queue, is migrated when opened for writing):
 //   jobs(id, name UNIQUE, spec_json, created_unix_s, updated_unix_s, status,
 //        stop_reason, result_json)
 //   evaluations(job_id, id, parameters_json, x_json, status, score, mean_iou,
@@ -15,6 +16,10 @@
 //   job_locks(job_id PRIMARY KEY, pid, host, token, acquired_unix_s,
 //        heartbeat_unix_s)                            the process working on a job
 //   job_inputs(job_id, path, size_bytes, fnv1a64)     PRIMARY KEY (job_id, path)
+//   job_runs(job_id, sequence, started_unix_s, program_version, host, pid,
+//        command)                                     every run or resume of a job
+//   job_queue(id, name UNIQUE, spec_json, priority, submitted_unix_s, state,
+//        start, message)                              the service's queue (job_queue.h)
 // The best evaluation is derived (lowest score among ok evaluations, ties to
 // the lowest id, as search::CheckedOptimizer ranks), so it can never
 // disagree with the evaluations.
@@ -92,6 +97,16 @@ struct InputFingerprint {
   std::string path;         ///< as the caller names it (unique per job)
   int64_t size_bytes = 0;
   uint64_t fnv1a64 = 0;     ///< FNV-1a 64 of the bytes
+};
+
+/// One invocation that worked on a job (`calib run`, `calib resume`, the
+/// service): which program, where and when.
+struct JobRunRecord {
+  double started_unix_s = 0.0;
+  std::string program_version;  ///< e.g. "calib 0.1.0"
+  std::string host;
+  int64_t pid = 0;
+  std::string command;          ///< "run", "resume", "resume --budget 128", "serve"
 };
 
 enum class JobStatus {
@@ -206,6 +221,14 @@ class ResultStore {
   void SetJobResult(int64_t job, const nlohmann::json& result);
   /// Replaces the stored spec (a resume that accepts a changed spec).
   void SetJobSpec(int64_t job, const nlohmann::json& spec);
+  /// Deletes the job and everything of it (evaluations, checkpoints, lock,
+  /// inputs, runs). Throws StoreError for an unknown id.
+  void DeleteJob(int64_t job);
+  /// Appends a run to the job's runs.
+  void RecordJobRun(int64_t job, const JobRunRecord& run);
+  /// Oldest first; empty when none were recorded (or a read-only store of
+  /// version < 3).
+  std::vector<JobRunRecord> JobRuns(int64_t job) const;
 
   // ---------------------------------------------------- lock, inputs
   /// Takes job `job` for `claim` (pid, host, token; the times are set here)

@@ -46,6 +46,16 @@ std::string BudgetSetting(std::string_view name);
 // once per seed.
 bool SeedIndependent(std::string_view name);
 
+// Whether optimiser `name`, restored from a state saved when its budget was
+// used and given a larger one, proposes what a search with the larger
+// budget from the start would have (`calib resume --budget`): random (its
+// points do not depend on the budget), cmaes (the budget only stops it; it
+// keeps whole generations) and genetic (the budget only cuts it, up to
+// population x generations). Not: grid (its points are spread for the
+// budget), annealing (its cooling schedule spans the budget) and nlopt:*
+// (NLopt's own run is laid out for maxeval).
+bool BudgetExtendsExactly(std::string_view name);
+
 // `settings` (an object, or null for none) with BudgetSetting(name) set to
 // `evaluations` where the settings leave it out.
 nlohmann::json WithBudget(std::string_view name, nlohmann::json settings, int64_t evaluations);

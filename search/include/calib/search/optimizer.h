@@ -60,6 +60,16 @@ class Optimizer {
   // restored state, so that a state whose parts disagree is refused by
   // RestoreState instead of failing at the next Ask or Tell.
   virtual std::optional<std::vector<int64_t>> AwaitedIds() const { return std::nullopt; }
+
+  // How many candidates this optimiser has handed out (its next id) and how
+  // many results it has been told, where its state says; nullopt (the
+  // default) where it does not. The checked wrapper compares them with its
+  // own counts of a restored state, as it does AwaitedIds.
+  struct IdCounts {
+    int64_t asked = 0;
+    int64_t told = 0;
+  };
+  virtual std::optional<IdCounts> Counts() const { return std::nullopt; }
 };
 
 }  // namespace calib::search

@@ -1,0 +1,78 @@
+// The service's job queue in the results store: priority then submission
+// order, one entry per name, state changes, and what a restart finds.
+
+#include "calib/results/job_queue.h"
+#include "calib/results/store.h"
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+
+namespace calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+const nlohmann::json kSpec = {{"name", "x"}};
+
+TEST(JobQueue, HandsOutByPriorityThenSubmissionOrder) {
+  const fs::path dir = testing::ScratchDir("queue_order");
+  JobQueue queue(dir / "s.sqlite");
+  const int64_t a = queue.Add("a", kSpec, 0, false);
+  const int64_t b = queue.Add("b", kSpec, 5, false);
+  const int64_t c = queue.Add("c", kSpec, 0, true);
+  const int64_t d = queue.Add("d", kSpec, 5, false);
+  std::vector<int64_t> order;
+  while (const std::optional<QueueEntry> e = queue.ClaimNext()) {
+    EXPECT_EQ(e->state, QueueState::kRunning);
+    order.push_back(e->id);
+  }
+  EXPECT_EQ(order, (std::vector<int64_t>{b, d, a, c}));
+  EXPECT_TRUE(queue.Find("c")->resume);
+  EXPECT_FALSE(queue.Find("a")->resume);
+  EXPECT_EQ(queue.Find("a")->state, QueueState::kRunning) << "claimed entries are running";
+}
+
+TEST(JobQueue, ANameIsQueuedOnce) {
+  const fs::path dir = testing::ScratchDir("queue_names");
+  JobQueue queue(dir / "s.sqlite");
+  queue.Add("a", kSpec, 0, false);
+  try {
+    queue.Add("a", kSpec, 1, false);
+    ADD_FAILURE() << "a second entry of one name was queued";
+  } catch (const StoreError& e) {
+    EXPECT_NE(std::string(e.what()).find("queue job 'a': a job of that name is in the queue"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(JobQueue, OutlivesTheProcessAndRequeuesWhatWasRunning) {
+  const fs::path dir = testing::ScratchDir("queue_restart");
+  int64_t running = 0, done = 0, queued = 0;
+  {
+    JobQueue queue(dir / "s.sqlite");
+    running = queue.Add("running", kSpec, 9, false);
+    done = queue.Add("done", kSpec, 8, false);
+    queued = queue.Add("queued", {{"name", "queued"}, {"seed", 3}}, 0, false);
+    ASSERT_EQ(queue.ClaimNext()->id, running);
+    ASSERT_EQ(queue.ClaimNext()->id, done);
+    queue.Set(done, QueueState::kDone, "finished", false);
+  }
+  JobQueue queue(dir / "s.sqlite");  // as a restarted server does
+  EXPECT_EQ(queue.RequeueRunning(), 1);
+  const std::optional<QueueEntry> first = queue.ClaimNext();
+  ASSERT_TRUE(first.has_value());
+  EXPECT_EQ(first->id, running);
+  EXPECT_TRUE(first->resume) << "a job left running resumes from its checkpoint";
+  EXPECT_EQ(queue.ClaimNext()->id, queued);
+  EXPECT_FALSE(queue.ClaimNext().has_value()) << "a done entry is not handed out again";
+  EXPECT_EQ(queue.Find("done")->message, "finished");
+  EXPECT_EQ(queue.Find("queued")->spec["seed"], 3);
+  queue.Remove(done);
+  EXPECT_FALSE(queue.Find("done").has_value());
+  EXPECT_EQ(queue.Entries().size(), 2u);
+  EXPECT_EQ(ResultStore(dir / "s.sqlite").SchemaVersion(), 3) << "the queue lives in a results store";
+}
+
+}  // namespace
+}  // namespace calib

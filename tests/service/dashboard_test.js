@@ -1,0 +1,128 @@
+// The dashboard in headless Chromium (puppeteer-core, dashboard/package.json):
+// the page asks for the token once and keeps it in an HttpOnly, SameSite
+// Strict cookie; a spec submitted through its form appears in the jobs
+// table; the job's convergence plot grows as evaluations come in, and its
+// best parameters show; a bad spec shows the server's message naming the
+// field. Exit 0 when all holds. Run by ctest (tests/CMakeLists.txt) with
+// CALIB_EXE, CALIB_SOURCE_DIR and CALIB_CHROMIUM set; CALIB_SCREENSHOT_DIR,
+// when set, receives dashboard.png.
+"use strict";
+const { spawn } = require("child_process");
+const fs = require("fs");
+const os = require("os");
+const path = require("path");
+
+const source = process.env.CALIB_SOURCE_DIR;
+const puppeteer = require(path.join(source, "dashboard", "node_modules", "puppeteer-core"));
+
+function fail(message) {
+  console.error("FAILED: " + message);
+  process.exitCode = 1;
+  throw new Error(message);
+}
+
+function check(condition, message) {
+  if (!condition) fail(message);
+}
+
+async function waitFor(what, predicate, timeoutMs) {
+  const deadline = Date.now() + timeoutMs;
+  while (Date.now() < deadline) {
+    const value = await predicate();
+    if (value) return value;
+    await new Promise((r) => setTimeout(r, 100));
+  }
+  fail(`${what}: not after ${timeoutMs / 1000} s`);
+}
+
+const jobYaml = (name, budget) => `
+name: ${name}
+train: [push_centre]
+model: {substeps: 4, mesh: {edge_length_px: 40}}
+parameters:
+  - {name: k_D, lower: 10, upper: 5000, scale: log}
+  - {name: k_d, lower: 0.01, upper: 50, scale: log}
+  - {name: k_A, lower: 1, upper: 5000, scale: log}
+  - {name: k_phi, lower: 0.1, upper: 1000, scale: log}
+  - {name: mass, fixed: 0.2}
+  - {name: tau, lower: 0, upper: 0.5}
+optimizer: {name: cmaes, settings: {population: 4}}
+budget: {evaluations: ${budget}}
+seed: 3
+`;
+
+async function main() {
+  const state = fs.mkdtempSync(path.join(os.tmpdir(), "calib_dashboard_"));
+  const server = spawn(process.env.CALIB_EXE, [
+    "serve", "--port", "0", "--port-file", path.join(state, "port"), "--state-dir", state,
+    "--data-root", path.join(source, "examples"), "--jobs", "1", "--threads-per-job", "1", "--no-report",
+  ], { stdio: ["ignore", "ignore", "inherit"] });
+  let browser = null;
+  try {
+    await waitFor("the server's port file", () => fs.existsSync(path.join(state, "port")), 30000);
+    const port = fs.readFileSync(path.join(state, "port"), "utf8").trim();
+    const token = fs.readFileSync(path.join(state, "token"), "utf8").trim();
+    const url = `http://127.0.0.1:${port}/`;
+
+    browser = await puppeteer.launch({
+      executablePath: process.env.CALIB_CHROMIUM,
+      args: ["--no-sandbox", "--disable-gpu"],
+      headless: true,
+    });
+    const page = await browser.newPage();
+    await page.setViewport({ width: 1000, height: 1100 });
+    await page.goto(url);
+    await page.waitForSelector("#login", { visible: true });
+
+    await page.type("#token", "not-the-token");
+    await page.click("#login-form button");
+    await waitFor("a wrong token named", async () =>
+      (await page.$eval("#login-error", (e) => e.textContent)).includes("wrong token"), 10000);
+    await page.$eval("#token", (e) => { e.value = ""; });
+    await page.type("#token", token);
+    await page.click("#login-form button");
+    await page.waitForSelector("#main", { visible: true });
+    const cookies = await page.cookies();
+    const cookie = cookies.find((c) => c.name === "calib_token");
+    check(cookie !== undefined, "no calib_token cookie after signing in");
+    check(cookie.httpOnly, "the cookie is not HttpOnly");
+    check(cookie.sameSite === "Strict", `the cookie is SameSite=${cookie.sameSite}, not Strict`);
+    check(!(await page.evaluate(() => document.cookie)).includes("calib_token"),
+          "the page's script can read the token");
+
+    // A bad spec: the server's message, naming the field.
+    await page.$eval("#spec", (e, v) => { e.value = v; }, jobYaml("bad", 0));
+    await page.click("#submit-form button");
+    await waitFor("the bad spec's message", async () =>
+      (await page.$eval("#submit-result", (e) => e.textContent)).includes("budget.evaluations = '0'"), 10000);
+
+    await page.$eval("#spec", (e, v) => { e.value = v; }, jobYaml("from_dashboard", 48));
+    await page.click("#submit-form button");
+    await page.waitForSelector('tr.job[data-name="from_dashboard"]', { timeout: 10000 });
+    await page.click('tr.job[data-name="from_dashboard"]');
+    const points = async () => Number(await page.$eval("#chart", (e) => e.dataset.points || 0));
+    const first = await waitFor("the plot's first points", async () => {
+      const n = await points();
+      return n > 0 ? n : 0;
+    }, 60000);
+    await waitFor("the plot growing", async () => (await points()) > first, 60000);
+    await waitFor("the best parameters", async () =>
+      (await page.$$("#parameters tr")).length === 6, 10000);
+    await waitFor("the job finished in the table", async () =>
+      (await page.$eval('tr.job[data-name="from_dashboard"]', (e) => e.textContent)).includes("48/48"), 90000);
+    await waitFor("the job's detail at its end", async () =>
+      (await page.$eval("#detail-status", (e) => e.textContent)).includes("48/48"), 30000);
+    if (process.env.CALIB_SCREENSHOT_DIR) {
+      await page.screenshot({ path: path.join(process.env.CALIB_SCREENSHOT_DIR, "dashboard.png"), fullPage: true });
+    }
+    console.log(`dashboard: signed in, a bad spec named, a job submitted, its plot grew from ${first} to ${await points()} points`);
+  } finally {
+    if (browser) await browser.close();
+    server.kill("SIGTERM");
+  }
+}
+
+main().catch((e) => {
+  if (!process.exitCode) console.error("FAILED: " + (e && e.stack ? e.stack : e));
+  process.exitCode = 1;
+});
