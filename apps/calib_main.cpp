@@ -7,6 +7,7 @@
 #include "calib/evaluator/recording_compare.h"
 #include "calib/jobs/commands.h"
 #include "calib/results/frame_report.h"
+#include "compare_cli.h"
 #include "job_cli.h"
 #include "loop_cli.h"
 #include "segment_cli.h"
@@ -145,6 +146,7 @@ int main(int argc, char** argv) {
   const auto job_cli = calib::cli::AddJobSubcommands(app);  // run, resume, results, best, validate
   const auto loop_cli = calib::cli::AddLoopSubcommand(app);
   const auto benchmark_cli = calib::cli::AddLoopBenchmarkSubcommand(app);
+  const auto compare_optimizers_cli = calib::cli::AddCompareSubcommand(app);
   const auto service_cli = calib::cli::AddServiceSubcommands(app);  // serve, submit, status, ...
   const auto segment_cli = calib::cli::AddSegmentSubcommand(app);
 
@@ -169,6 +171,9 @@ int main(int argc, char** argv) {
       return *status;
     }
     if (const auto status = calib::cli::RunChosenSynthSubcommand(*synth_cli)) return *status;
+    if (const auto status = calib::cli::RunChosenCompareSubcommand(*compare_optimizers_cli)) {
+      return *status;
+    }
     if (const auto status = calib::cli::RunChosenServiceSubcommand(*service_cli)) return *status;
     if (const auto status = calib::cli::RunChosenSegmentSubcommand(*segment_cli)) return *status;
     Finish(&settings, integrator, cache_dir, no_cache);

@@ -2,6 +2,7 @@
 
 #include "calib/jobs/job_commands.h"
 #include "calib/jobs/mpi_evaluator.h"
+#include "calib/results/convergence_plot.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -32,11 +33,26 @@ struct JobCli {
   std::filesystem::path out;
   std::filesystem::path csv;
   std::filesystem::path json;
+  std::filesystem::path plot;
   bool fresh = false;
   std::optional<std::string> name;
   std::optional<uint64_t> seed;
   std::optional<int64_t> budget;
 };
+
+void AddProgressAndCacheOptions(CLI::App* cmd, std::string* progress, double* progress_interval_s,
+                                std::string* cache_dir, bool* no_cache) {
+  cmd->add_option("--progress", *progress,
+                  "auto (a bar on a terminal, log lines otherwise), bar, log or none")
+      ->check(CLI::IsMember({"auto", "bar", "log", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--progress-interval", *progress_interval_s,
+                  "seconds between progress lines when they are logged (not a terminal)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--cache-dir", *cache_dir, "segmentation cache folder");
+  cmd->add_flag("--no-cache", *no_cache, "do not read or write the segmentation cache");
+}
 
 namespace {
 
@@ -75,16 +91,8 @@ void AddRunOptions(CLI::App* cmd, JobCli* cli) {
   cmd->add_option("--wall-time", cli->wall_time_s,
                   "stop (resumably) after this many seconds (default: the spec's budget.wall_time_s)")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--progress", cli->progress,
-                  "auto (a bar on a terminal, log lines otherwise), bar, log or none")
-      ->check(CLI::IsMember({"auto", "bar", "log", "none"}))
-      ->capture_default_str();
-  cmd->add_option("--progress-interval", cli->progress_interval_s,
-                  "seconds between progress lines when they are logged (not a terminal)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  cmd->add_option("--cache-dir", cli->cache_dir, "segmentation cache folder");
-  cmd->add_flag("--no-cache", cli->no_cache, "do not read or write the segmentation cache");
+  AddProgressAndCacheOptions(cmd, &cli->progress, &cli->progress_interval_s, &cli->cache_dir,
+                             &cli->no_cache);
   cmd->add_flag("--no-report", cli->no_report,
                 "do not write the report (best parameters, overlays, summary) at the end");
   cmd->add_flag("--no-video", cli->no_video, "write the report without overlay videos");
@@ -172,6 +180,9 @@ std::shared_ptr<JobCli> AddJobSubcommands(CLI::App& app) {
   AddJobArgument(cli->results, cli.get());
   cli->results->add_option("--csv", cli->csv, "also write every evaluation as CSV here");
   cli->results->add_option("--json", cli->json, "also write the job and its evaluations as JSON here");
+  cli->results->add_option("--plot", cli->plot,
+                           "also write the convergence plot (score and best so far against "
+                           "evaluations, SVG) here");
 
   cli->best = app.add_subcommand(
       "best", "write the best parameters of a job as a parameter file (for calib simulate)");
@@ -211,6 +222,10 @@ std::optional<int> RunChosenJobSubcommand(JobCli& cli, int argc, char** argv) {
     if (!cli.json.empty()) {
       store.ExportJson(job, cli.json);
       fmt::print("wrote {}\n", cli.json.string());
+    }
+    if (!cli.plot.empty()) {
+      WriteConvergencePlot(cli.plot, store.Evaluations(job), store.Job(job).name);
+      fmt::print("wrote {}\n", cli.plot.string());
     }
     return 0;
   }

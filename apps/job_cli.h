@@ -6,10 +6,16 @@
 
 #include <memory>
 #include <optional>
+#include <string>
 
 namespace calib::cli {
 
 struct JobCli;
+
+/// --progress, --progress-interval, --cache-dir and --no-cache, as `run`
+/// and `resume` take them (compare-optimizers too).
+void AddProgressAndCacheOptions(CLI::App* cmd, std::string* progress, double* progress_interval_s,
+                                std::string* cache_dir, bool* no_cache);
 
 /// Adds run, resume, results and best to `app`; the returned object holds
 /// their options and must outlive parsing.

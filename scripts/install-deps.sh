@@ -18,6 +18,7 @@ packages=(
   libopenmpi-dev openmpi-bin
   gnuplot-nox
   python3 python3-yaml
+  python3-scipy python3-optuna python3-cmaes
   nodejs chromium
 )
 

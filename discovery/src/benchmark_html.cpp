@@ -3,7 +3,7 @@
 #include "calib/discovery/benchmark_html.h"
 
 #include "calib/results/gnuplot.h"
-#include "html_page.h"
+#include "calib/results/html_page.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -139,7 +139,7 @@ HtmlReportSummary WriteBenchmarkHtml(const std::filesystem::path& html_path,
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
   HtmlReportSummary summary;
-  html::Plotter plot(options);
+  html::Plotter plot(options.gnuplot, options.require_plots);
   summary.plots_made = plot.available();
   summary.plot_message = plot.message();
   const BenchmarkAggregate& a = report.aggregate;

@@ -2,7 +2,7 @@
 
 #include "calib/discovery/report_html.h"
 
-#include "html_page.h"
+#include "calib/results/html_page.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -192,7 +192,7 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
   HtmlReportSummary summary;
-  Plotter plot(options);
+  Plotter plot(options.gnuplot, options.require_plots);
   summary.plots_made = plot.available();
   summary.plot_message = plot.message();
 

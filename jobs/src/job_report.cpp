@@ -1,8 +1,10 @@
 #include "calib/jobs/job_report.h"
 
 #include "calib/evaluator/recording.h"
+#include "calib/results/convergence_plot.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <ctime>
 
@@ -29,6 +31,7 @@ std::string JobReport::Report() const {
                         r.result.ok() ? "" : " (simulation failed: " + r.result.failure_reason + ")");
     if (!r.overlay_video.empty()) text += fmt::format("  overlay video: {}\n", r.overlay_video.string());
   }
+  if (!convergence_svg.empty()) text += fmt::format("convergence plot: {}\n", convergence_svg.string());
   text += fmt::format("summary: {}\n", summary_txt.string());
   text += fmt::format("evaluations: {} and {}\n", evaluations_csv.string(), job_json.string());
   return text;
@@ -90,6 +93,15 @@ JobReport WriteJobReport(const JobSpec& spec, ResultStore& store, int64_t job,
   report.job_json = report.out_dir / "job.json";
 
   const bool has_best = store.Best(job).has_value();
+  if (has_best) {
+    // A plot is for people: without gnuplot the report goes on without it.
+    try {
+      WriteConvergencePlot(report.out_dir / "convergence.svg", store.Evaluations(job), spec.name);
+      report.convergence_svg = report.out_dir / "convergence.svg";
+    } catch (const std::runtime_error& e) {
+      spdlog::warn("{}: no convergence plot: {}", spec.name, e.what());
+    }
+  }
   if (has_best) {
     report.best_params = report.out_dir / "best_params.json";
     store.WriteBestParameterFile(job, report.best_params);

@@ -25,6 +25,7 @@ namespace calib {
 namespace {
 
 using spec_reader::MapReader;
+using spec_reader::ValidName;
 using spec_reader::Show;
 using spec_reader::YamlToJson;
 
@@ -60,13 +61,6 @@ class SpecErrors {
  private:
   std::vector<std::string> messages_;
 };
-
-bool ValidName(const std::string& name) {
-  if (name.empty()) return false;
-  return std::all_of(name.begin(), name.end(), [](char c) {
-    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
-  });
-}
 
 std::filesystem::path Resolve(const std::filesystem::path& base, const std::string& written) {
   return (base / std::filesystem::path(written)).lexically_normal();
@@ -465,20 +459,13 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
 
   const bool optimizer_read = errors.Check([&] {
     MapReader o(top.Require("optimizer", "a map with name and settings"), "optimizer", &spec.source);
-    const std::vector<std::string> names = search::OptimizerNames();
+    const std::vector<std::string> names = search::AllOptimizerNames();
     const YAML::Node n = o.Require("name", fmt::format("one of {}", fmt::join(names, ", ")));
     spec.optimizer.name = o.String("name", n);
     if (std::find(names.begin(), names.end(), spec.optimizer.name) == names.end()) {
       o.Fail("optimizer.name", n, fmt::format("unknown optimiser; one of {}", fmt::join(names, ", ")));
     }
-    const YAML::Node settings = o.Get("settings");
-    if (settings.IsDefined() && !settings.IsNull()) {
-      if (!settings.IsMap()) o.Fail("optimizer.settings", settings, "expected a map of settings");
-      // The optimiser checks the names; the reader names a repeated one,
-      // which the conversion to JSON would keep silently.
-      (void)o.Nested(settings, "optimizer.settings");
-      spec.optimizer.settings = YamlToJson(settings);
-    }
+    spec.optimizer.settings = spec_reader::ReadOptimizerSettings(o, "optimizer", spec.optimizer.name);
     o.Finish();
   });
   // The optimiser is made with the budget and the search space.
@@ -584,8 +571,16 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
   return spec;
 }
 
-JobSpec ParseJobSpec(const std::string& text, const std::string& source,
-                     const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+namespace spec_reader {
+
+bool ValidName(const std::string& name) {
+  if (name.empty()) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+  });
+}
+
+YAML::Node LoadSpecYaml(const std::string& text, const std::string& source) {
   // Its strings end up in JSON (the store keeps the spec as JSON; optimiser
   // settings are JSON), which must be UTF-8.
   if (const size_t at = FirstNonUtf8(text); at != std::string_view::npos) {
@@ -599,7 +594,42 @@ JobSpec ParseJobSpec(const std::string& text, const std::string& source,
   } catch (const YAML::Exception& e) {
     throw JobSpecError(fmt::format("{}: not valid YAML or JSON: {}", source, e.what()));
   }
-  return ParseJobSpecYaml(root, source, base_dir, options);
+  if (root.IsDefined() && !root.IsNull()) CheckYamlValues(root, source);
+  return root;
+}
+
+nlohmann::json ReadOptimizerSettings(yaml_reader::MapReader& o, const std::string& path, const std::string& name) {
+  nlohmann::json out = nlohmann::json::object();
+  const YAML::Node settings = o.Get("settings");
+  if (settings.IsDefined() && !settings.IsNull()) {
+    if (!settings.IsMap()) o.Fail(path + ".settings", settings, "expected a map of settings");
+    // The optimiser checks the names; the reader names a repeated one,
+    // which the conversion to JSON would keep silently.
+    (void)o.Nested(settings, path + ".settings");
+    out = YamlToJson(settings);
+  }
+  if (o.Has("command")) {
+    const YAML::Node command = o.Get("command");
+    if (name != "external") o.Fail(path + ".command", command, "only an external optimiser runs a command");
+    if (out.contains("command")) o.Fail(path + ".command", command, "given twice: here and in settings");
+    out["command"] = YamlToJson(command);
+  }
+  return out;
+}
+
+std::string ReadSpecFile(const std::filesystem::path& path, const char* what) {
+  std::ifstream in(path);
+  if (!in) throw JobSpecError(fmt::format("{}: cannot open {}", path.string(), what));
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+}  // namespace spec_reader
+
+JobSpec ParseJobSpec(const std::string& text, const std::string& source,
+                     const std::filesystem::path& base_dir, const JobSpecParseOptions& options) {
+  return ParseJobSpecYaml(spec_reader::LoadSpecYaml(text, source), source, base_dir, options);
 }
 
 JobSpec ParseJobSpec(const nlohmann::json& doc, const std::string& source,
@@ -609,12 +639,9 @@ JobSpec ParseJobSpec(const nlohmann::json& doc, const std::string& source,
 }
 
 JobSpec LoadJobSpec(const std::filesystem::path& path, const JobSpecParseOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw JobSpecError(fmt::format("{}: cannot open job spec", path.string()));
-  std::stringstream text;
-  text << in.rdbuf();
+  const std::string text = spec_reader::ReadSpecFile(path, "job spec");
   const std::filesystem::path base = std::filesystem::absolute(path).parent_path();
-  return ParseJobSpec(text.str(), path.string(), base, options);
+  return ParseJobSpec(text, path.string(), base, options);
 }
 
 void CheckRecordings(const JobSpec& spec) {

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include <filesystem>
 #include <string>
 #include <utility>
 
@@ -22,6 +23,20 @@ using yaml_reader::Show;
 /// A YAML value as JSON: quoted scalars are strings; plain ones integers,
 /// numbers, booleans or null where they read as such.
 nlohmann::json YamlToJson(const YAML::Node& n);
+
+/// Whether `name` may name a job: non-empty letters, digits, '_', '-', '.'.
+bool ValidName(const std::string& name);
+
+/// YAML (or JSON) text as a document: UTF-8 text, valid YAML, and small
+/// once its aliases are expanded, else a JobSpecError naming `source`.
+YAML::Node LoadSpecYaml(const std::string& text, const std::string& source);
+
+/// The text of a spec file; JobSpecError "<path>: cannot open <what>".
+std::string ReadSpecFile(const std::filesystem::path& path, const char* what);
+
+/// An optimiser map's settings as JSON (`settings`, and `command` for an
+/// external optimiser, which goes into them); `path` names the map.
+nlohmann::json ReadOptimizerSettings(yaml_reader::MapReader& o, const std::string& path, const std::string& name);
 
 /// Throws JobSpecError(message).
 [[noreturn]] void RaiseJobSpecError(const std::string& message);

@@ -8,6 +8,7 @@
 
 #include "calib/search/annealing.h"
 #include "calib/search/cmaes.h"
+#include "calib/search/external_optimizer.h"
 #include "calib/search/genetic.h"
 #include "calib/search/grid.h"
 #include "calib/search/nlopt_optimizer.h"
@@ -18,6 +19,12 @@ namespace calib::search {
 std::vector<std::string> OptimizerNames() {
   std::vector<std::string> names = {"grid", "random", "genetic", "annealing", "cmaes"};
   for (const auto& algo : NloptAlgorithmNames()) names.push_back("nlopt:" + algo);
+  return names;
+}
+
+std::vector<std::string> AllOptimizerNames() {
+  std::vector<std::string> names = OptimizerNames();
+  names.push_back("external");
   return names;
 }
 
@@ -39,9 +46,11 @@ CheckedOptimizer MakeOptimizer(std::string_view name_view, const nlohmann::json&
     plugin = MakeCmaes(CmaesOptions::FromJson(settings, bounds), bounds, seed);
   } else if (name.rfind("nlopt:", 0) == 0) {
     plugin = MakeNlopt(NloptOptions::FromJson(name.substr(6), settings, bounds), bounds, seed);
+  } else if (name == "external") {
+    plugin = MakeExternal(ExternalOptions::FromJson(settings), bounds, seed);
   } else {
     throw std::invalid_argument(fmt::format("optimiser '{}' is unknown. Violated: the name is one of {}",
-                                            name, fmt::join(OptimizerNames(), ", ")));
+                                            name, fmt::join(AllOptimizerNames(), ", ")));
   }
   return CheckedOptimizer(std::move(plugin), bounds);
 }
@@ -54,10 +63,17 @@ bool IsNlopt(const std::string& name) { return name.rfind("nlopt:", 0) == 0; }
 
 std::string BudgetSetting(std::string_view name_view) {
   const std::string name(name_view);
-  if (name == "grid" || name == "random" || name == "annealing" || name == "cmaes") {
+  if (name == "grid" || name == "random" || name == "annealing" || name == "cmaes" || name == "external") {
     return "max_evals";
   }
   return IsNlopt(name) ? "maxeval" : "";
+}
+
+bool SeedIndependent(std::string_view name) {
+  static const char* const kNames[] = {"grid",         "nlopt:BOBYQA", "nlopt:COBYLA",
+                                       "nlopt:NELDERMEAD", "nlopt:SBPLX", "nlopt:DIRECT",
+                                       "nlopt:DIRECT_L", "nlopt:MLSL"};
+  return std::find(std::begin(kNames), std::end(kNames), name) != std::end(kNames);
 }
 
 bool BudgetExtendsExactly(std::string_view name) {

@@ -299,9 +299,13 @@ TEST_F(JobCli, ResultsPrintsAndExportsAndBestFeedsSimulate) {
   const std::string db = (*dir_ / "reference.sqlite").string();
   const testing::ProcessResult results = testing::RunProcess(
       {kCalib, "results", spec_->string(), "--store", db, "--csv", (dir / "e.csv").string(),
-       "--json", (dir / "e.json").string()},
+       "--json", (dir / "e.json").string(), "--plot", (dir / "c.svg").string()},
       dir);
   ASSERT_EQ(results.exit_code, 0) << results.err;
+  EXPECT_CONTAINS(results.out, "wrote " + (dir / "c.svg").string());
+  const std::string svg = testing::ReadText(dir / "c.svg");
+  EXPECT_CONTAINS(svg, "<svg");
+  EXPECT_CONTAINS(svg, "cli_job: 64 evaluations, ");
   EXPECT_CONTAINS(results.out, "job: cli_job");
   EXPECT_CONTAINS(results.out, "status: finished");
   EXPECT_CONTAINS(results.out, "evaluations: 64 (");

@@ -53,6 +53,27 @@ TEST(Factory, BudgetsAreFilledInUnderEachOptimisersOwnKey) {
   }
 }
 
+TEST(Factory, SeedIndependentOptimizersProposeTheSameCandidatesForAnySeed) {
+  int independent = 0;
+  for (const std::string& name : OptimizerNames()) {
+    const nlohmann::json settings = WithBudget(name, nullptr, 40);
+    CheckedOptimizer a = MakeOptimizer(name, settings, testing::Box(3, 0, 1), 1);
+    CheckedOptimizer b = MakeOptimizer(name, settings, testing::Box(3, 0, 1), 987654321);
+    const testing::History ha = testing::RunOptimizer(a, testing::Rastrigin, 4, testing::TellOrder::kInOrder, 40);
+    const testing::History hb = testing::RunOptimizer(b, testing::Rastrigin, 4, testing::TellOrder::kInOrder, 40);
+    std::string why;
+    const bool same = testing::SameCandidates(ha.asked, hb.asked, &why);
+    if (SeedIndependent(name)) {
+      ++independent;
+      EXPECT_TRUE(same) << name << " is said to ignore its seed, but: " << why;
+    } else {
+      EXPECT_FALSE(same) << name << " gives the same candidates for seeds 1 and 987654321; "
+                         << "SeedIndependent should list it";
+    }
+  }
+  EXPECT_EQ(independent, 8) << "grid and seven NLopt algorithms";
+}
+
 TEST(Factory, StartSettingsStartWhereAskedWithTheStepAsked) {
   const std::vector<double> x0 = {0.2, 0.7, 0.4};
   const nlohmann::json cmaes = StartSettings("cmaes", 3, &x0, 0.25, 100);

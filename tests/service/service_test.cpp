@@ -447,6 +447,13 @@ TEST_F(Service, BadRequestsGetTheir4xxNamingTheFieldAndTheServerAnswersOn) {
   expect(post(with_train((dir / "root" / "out_link" / "push_centre").string())), 403, "spec",
          "outside the server's data roots");
   expect(post(with_train("no_such_recording")), 400, "spec", "train[0]");  // inside, but absent
+  // An external optimiser would run any program on the server.
+  std::string external = JobYaml("j", 3, 8);
+  const std::string cmaes = "{name: cmaes, settings: {population: 4, initial_sigma: 0.3}}";
+  ASSERT_NE(external.find(cmaes), std::string::npos);
+  external.replace(external.find(cmaes), cmaes.size(), "{name: external, command: [/bin/true]}");
+  expect(post(nlohmann::json{{"spec", external}}.dump()), 403, "spec",
+         "submitted spec: optimizer.name = 'external': runs a program on the server");
   expect(server.Client().Get("/api/v1/jobs/nosuchjob"), 404, "name", "no job 'nosuchjob'");
   expect(server.Client().Get("/api/v1/nothing"), 404, "", "no such resource");
   expect(server.Client().Post("/api/v1/jobs/nosuchjob/budget", "{}", "application/json"), 404, "name",

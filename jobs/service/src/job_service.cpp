@@ -148,6 +148,15 @@ nlohmann::json JobService::Submit(const nlohmann::json& request) {
   } catch (const JobSpecError& e) {
     throw ServiceError(400, "spec", e.what());
   }
+  // An external optimiser runs the program its settings name: a client of
+  // the service would run any program on the server, which reads no more
+  // than its data roots.
+  if (spec.optimizer.name == "external") {
+    throw ServiceError(403, "spec",
+                       fmt::format("{}: optimizer.name = 'external': runs a program on the server, "
+                                   "which the service does not do (run it with calib run)",
+                                   kSpecSource));
+  }
   nlohmann::json notices = nlohmann::json::array();
   const fs::path default_store = fs::absolute(options_.reports() / (spec.name + ".sqlite")).lexically_normal();
   const fs::path default_out = fs::absolute(options_.reports() / spec.name).lexically_normal();

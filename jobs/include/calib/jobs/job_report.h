@@ -4,6 +4,8 @@
 //   evaluations.csv    every evaluation (ResultStore::ExportCsv)
 //   job.json           the job, its summary and every evaluation (ExportJson)
 //   summary.txt        the summary `calib results` prints
+//   convergence.svg    score and best so far against evaluations (convergence_plot.h;
+//                      left out with a warning when gnuplot is missing)
 //   train/<rec>/, holdout/<rec>/   the best parameters simulated on each
 //       recording: overlay.mp4, frames.csv, the worst frame's overlay PNG
 // The held-out scores (predicted, not refitted) are also kept in the store
@@ -34,6 +36,7 @@ struct JobReport {
   std::filesystem::path evaluations_csv;
   std::filesystem::path job_json;
   std::filesystem::path summary_txt;
+  std::filesystem::path convergence_svg;  ///< empty when not written
   std::vector<RecordingReport> recordings;
 
   /// Lines naming every file and each recording's score and mean IoU.

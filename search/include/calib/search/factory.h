@@ -13,9 +13,10 @@
 
 namespace calib::search {
 
-// name: "grid", "random", "genetic", "annealing", "cmaes", or "nlopt:<ALGO>"
+// name: "grid", "random", "genetic", "annealing", "cmaes", "nlopt:<ALGO>"
 // with ALGO one of BOBYQA, COBYLA, NELDERMEAD, SBPLX, DIRECT, DIRECT_L,
-// CRS2_LM, ISRES, ESCH, MLSL. settings: a JSON object (null = all defaults)
+// CRS2_LM, ISRES, ESCH, MLSL, or "external" (a program speaking ask/tell,
+// external_optimizer.h). settings: a JSON object (null = all defaults)
 // whose keys each optimiser's header documents; unknown keys are rejected.
 // seed: every random choice derives from it.
 // Throws std::invalid_argument naming the optimiser, and for a bad setting
@@ -23,16 +24,27 @@ namespace calib::search {
 CheckedOptimizer MakeOptimizer(std::string_view name, const nlohmann::json& settings,
                                const Bounds& bounds, uint64_t seed);
 
-// Every name MakeOptimizer accepts.
+// The optimisers that run in this process: every name MakeOptimizer
+// accepts but "external" (which needs a program to run).
 std::vector<std::string> OptimizerNames();
+
+// Every name MakeOptimizer accepts: OptimizerNames() and "external".
+std::vector<std::string> AllOptimizerNames();
 
 // What the rest of the program needs to know of an optimiser beyond
 // MakeOptimizer, kept here so that a new optimiser touches search/ only.
 
 // The setting of optimiser `name` that caps its own evaluations
-// ("max_evals": grid, random, annealing, cmaes; "maxeval": nlopt:*), or ""
+// ("max_evals": grid, random, annealing, cmaes, external; "maxeval":
+// nlopt:*), or ""
 // where it has none (genetic: population x generations).
 std::string BudgetSetting(std::string_view name);
+
+// Whether optimiser `name` ignores its seed: the same candidates whatever
+// the seed (grid; NLopt's BOBYQA, COBYLA, NELDERMEAD, SBPLX from their x0,
+// DIRECT, DIRECT_L, and MLSL on its low-discrepancy sequence). A comparison runs such an optimiser once rather than
+// once per seed.
+bool SeedIndependent(std::string_view name);
 
 // Whether optimiser `name`, restored from a state saved when its budget was
 // used and given a larger one, proposes what a search with the larger

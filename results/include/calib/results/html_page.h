@@ -1,9 +1,9 @@
 #pragma once
-// What the discovery library's HTML pages share (report_html.cpp: the loop's
-// report; benchmark_html.cpp: the loop benchmark's): escaping, numbers, the
-// style sheet, gnuplot figures (or their absence) and writing the page.
+// What the HTML reports share (the loop's report and the loop benchmark's
+// in discovery/, the optimiser comparison's here): escaping, numbers,
+// the style sheet, gnuplot figures (or their absence) and writing the page.
 
-#include "calib/discovery/report_html.h"
+#include "calib/results/gnuplot.h"
 
 #include <filesystem>
 #include <string>
@@ -25,8 +25,9 @@ std::string PageStart(const std::string& title);
 // Makes the pages' plots, or notes their absence.
 class Plotter {
  public:
-  /// Throws std::runtime_error (gnuplot missing) when options.require_plots.
-  explicit Plotter(const HtmlReportOptions& options);
+  /// Without gnuplot: require_plots false makes pages without plots (the
+  /// caller says so); true throws std::runtime_error naming gnuplot-nox.
+  Plotter(GnuplotOptions gnuplot, bool require_plots);
   bool available() const { return available_; }
   const std::string& message() const { return message_; }
   int plots() const { return plots_; }
@@ -40,7 +41,8 @@ class Plotter {
   std::string PageEnd() const;
 
  private:
-  const HtmlReportOptions& options_;
+  GnuplotOptions gnuplot_;
+  bool require_plots_ = false;
   bool available_ = false;
   std::string message_;
   int plots_ = 0;

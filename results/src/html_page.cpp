@@ -1,12 +1,13 @@
-// The discovery library's HTML pages' shared parts (html_page.h).
+// What the HTML reports share (html_page.h).
 
-#include "html_page.h"
+#include "calib/results/html_page.h"
 
 #include <fmt/format.h>
 
 #include <cmath>
 #include <fstream>
 #include <stdexcept>
+#include <utility>
 
 namespace calib::html {
 namespace {
@@ -67,20 +68,21 @@ std::string PageStart(const std::string& title) {
       Escape(title), kStyle);
 }
 
-Plotter::Plotter(const HtmlReportOptions& options) : options_(options) {
-  available_ = GnuplotAvailable(options.gnuplot.executable, &message_);
-  if (!available_ && options.require_plots) throw std::runtime_error(message_);
+Plotter::Plotter(GnuplotOptions gnuplot, bool require_plots)
+    : gnuplot_(std::move(gnuplot)), require_plots_(require_plots) {
+  available_ = GnuplotAvailable(gnuplot_.executable, &message_);
+  if (!available_ && require_plots_) throw std::runtime_error(message_);
 }
 
 std::string Plotter::Figure(const std::string& script, const std::string& caption, int height_px) {
   if (!available_) return "";
-  GnuplotOptions g = options_.gnuplot;
+  GnuplotOptions g = gnuplot_;
   if (height_px > 0) g.height_px = height_px;
   std::string svg;
   try {
     svg = RenderSvg(script, g);
   } catch (const std::runtime_error&) {
-    if (options_.require_plots) throw;
+    if (require_plots_) throw;
     return fmt::format("<p class=\"warn\">Plot failed: {}</p>\n", Escape(caption));
   }
   ++plots_;

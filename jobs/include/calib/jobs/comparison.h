@@ -1,0 +1,69 @@
+#pragma once
+// The work behind `calib compare-optimizers` (docs/compare.md): every run of
+// a comparison spec (comparison_spec.h) as an ordinary job of one results
+// store, then the analysis and the report.
+//
+// Resume. Running a comparison again continues it: a run whose job is
+// finished or aborted is not run again (but its spec and recordings must be
+// the ones it ran with, else the error names the job and what changed), a job left stopped or interrupted
+// (a kill) is resumed exactly (job_commands.h), the others are run. Each
+// run's history depends only on its spec and seed, so a comparison killed
+// at any moment and run again gives the results of an uninterrupted one, at
+// any thread count.
+
+#include "calib/jobs/comparison_spec.h"
+#include "calib/jobs/job_commands.h"
+#include "calib/results/comparison_analysis.h"
+#include "calib/results/comparison_report.h"
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace calib {
+
+struct ComparisonOptions {
+  /// OpenMP threads per run, overriding the spec's `threads`.
+  std::optional<int> threads;
+  /// Segmentation cache: the default folder, another, or none.
+  std::optional<std::filesystem::path> cache_dir;
+  bool no_cache = false;
+  ProgressMode progress = ProgressMode::kAuto;
+  double progress_interval_s = 10.0;
+  JobLockOptions lock;
+  /// Null: the training recordings, prepared once for every run. Tests pass
+  /// analytic objectives.
+  ObjectiveFactory make_objective;
+  ComparisonReportOptions report;
+  /// Recorded with each run of a job (JobCommandOptions::program_version),
+  /// the command as "compare-optimizers".
+  std::string program_version = "calib";
+};
+
+struct ComparisonResult {
+  std::filesystem::path store;
+  int runs = 0;          ///< in the spec
+  int already_done = 0;  ///< finished or aborted before this invocation
+  int run_now = 0;       ///< run or resumed by this invocation
+  /// A run stopped resumably (a signal, the wall time): the comparison
+  /// stopped there, without a report.
+  bool stopped = false;
+  std::optional<ComparisonAnalysis> analysis;  ///< set when every run is done
+  std::optional<ComparisonReportSummary> report;
+};
+
+/// Runs (or continues) the comparison and, once every run is done, writes
+/// the report into `out_dir` with `comparison.json` (ComparisonSpec::ToJson).
+/// Errors as RunJob's.
+ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem::path& out_dir,
+                               const ComparisonOptions& options);
+
+/// Every run's evaluations from the comparison's store, in spec order; a
+/// run not in the store has none.
+std::vector<ComparisonRunData> LoadComparisonRuns(const ComparisonSpec& spec);
+
+/// The analysis options a spec asks for.
+ComparisonAnalysisOptions AnalysisOptions(const ComparisonSpec& spec);
+
+}  // namespace calib
