@@ -171,11 +171,13 @@ class Service : public ::testing::Test {
   static void SetUpTestSuite() { dir_ = new fs::path(testing::ScratchDir("service")); }
   static void TearDownTestSuite() { delete dir_; }
 
-  static std::vector<EvaluationRecord> Reference(int seed, size_t evaluations) {
-    const fs::path store = *dir_ / fmt::format("reference_{}.sqlite", seed);
+  // The first `evaluations` of an uninterrupted `calib run` of the job with
+  // `seed` and `budget`.
+  static std::vector<EvaluationRecord> Reference(int seed, size_t evaluations, int budget = 16) {
+    const fs::path store = *dir_ / fmt::format("reference_{}_{}.sqlite", seed, budget);
     if (!fs::exists(store)) {
-      const fs::path spec = *dir_ / fmt::format("reference_{}.yaml", seed);
-      std::ofstream(spec) << JobYaml("reference", seed, 16);
+      const fs::path spec = *dir_ / fmt::format("reference_{}_{}.yaml", seed, budget);
+      std::ofstream(spec) << JobYaml("reference", seed, budget);
       const testing::ProcessResult run = testing::RunProcess(
           {kCalib, "run", spec.string(), "--store", store.string(), "--no-report", "--progress", "none"},
           *dir_);
@@ -325,7 +327,11 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   const fs::path dir = testing::ScratchDir("service_cancel");
   Server server(dir / "state", dir / "logs", {"--no-report"});
   ASSERT_GT(server.port(), 0);
-  server.Submit(JobYaml("cancelled", 3, 16));
+  // A budget far beyond the 5 evaluations after which the job is cancelled,
+  // so that the cancel lands while it runs however slow `calib cancel` is
+  // to start.
+  constexpr int kBudget = 96;
+  server.Submit(JobYaml("cancelled", 3, kBudget));
   server.WaitEvaluations("cancelled", 5);
   const testing::ProcessResult cancel = testing::RunProcess(
       {kCalib, "cancel", "cancelled", "--server", server.url(), "--token-file",
@@ -336,7 +342,7 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   const nlohmann::json stopped = server.WaitDone("cancelled");
   EXPECT_EQ(stopped["state"], "cancelled") << stopped.dump();
   EXPECT_EQ(stopped["status"], "stopped");
-  EXPECT_LT(stopped["evaluations"].get<int>(), 16) << "stopped before its end";
+  EXPECT_LT(stopped["evaluations"].get<int>(), kBudget) << "stopped before its end";
 
   httplib::Client client = server.Client();
   const httplib::Result resumed = client.Post("/api/v1/jobs/cancelled/resume", "", "application/json");
@@ -345,11 +351,12 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   const nlohmann::json done = server.WaitDone("cancelled");
   EXPECT_EQ(done["status"], "finished") << done.dump();
   EXPECT_EQ(done["runs"].size(), 2u) << "the run and the resume";
-  testing::ExpectSameHistory(Reference(3, 16), History(server.store(), "cancelled"), "cancelled and resumed");
+  testing::ExpectSameHistory(Reference(3, kBudget, kBudget), History(server.store(), "cancelled"),
+                             "cancelled and resumed");
   const httplib::Result again = client.Post("/api/v1/jobs/cancelled/resume", "", "application/json");
   ASSERT_TRUE(again);
   EXPECT_EQ(again->status, 200) << "a finished job may be queued again: nothing to do";
-  EXPECT_EQ(server.WaitDone("cancelled")["evaluations"], 16);
+  EXPECT_EQ(server.WaitDone("cancelled")["evaluations"], kBudget);
 }
 
 TEST_F(Service, AReportIsDeletedPastItsAgeLimitAndTheResultsStay) {
