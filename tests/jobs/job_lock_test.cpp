@@ -49,16 +49,7 @@ JobSpec LockJobSpec(const fs::path& dir) {
   return spec;
 }
 
-JobCommandOptions SyntheticOptions() {
-  JobCommandOptions options;
-  options.threads = 1;
-  options.write_report = false;
-  options.progress = ProgressMode::kNone;
-  options.make_objective = [](const JobSpec&, const PreparationOptions&) {
-    return std::make_unique<testing::SyntheticObjective>();
-  };
-  return options;
-}
+JobCommandOptions SyntheticOptions() { return testing::SyntheticJobCommandOptions(); }
 
 // The job created (status created, nothing run) and its id.
 int64_t CreateJob(const JobSpec& spec) {

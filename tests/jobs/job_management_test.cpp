@@ -43,14 +43,8 @@ JobSpec ManagedSpec(const std::string& optimizer, int64_t budget, const fs::path
 }
 
 JobCommandOptions SyntheticOptions() {
-  JobCommandOptions options;
-  options.threads = 1;
-  options.write_report = false;
-  options.progress = ProgressMode::kNone;
+  JobCommandOptions options = testing::SyntheticJobCommandOptions();
   options.batch_size = 5;  // batches that do not line up with the budgets
-  options.make_objective = [](const JobSpec&, const PreparationOptions&) {
-    return std::make_unique<testing::SyntheticObjective>();
-  };
   return options;
 }
 

@@ -150,4 +150,15 @@ void ExpectSameHistory(const std::vector<EvaluationRecord>& expected,
   }
 }
 
+JobCommandOptions SyntheticJobCommandOptions() {
+  JobCommandOptions options;
+  options.threads = 1;
+  options.write_report = false;
+  options.progress = ProgressMode::kNone;
+  options.make_objective = [](const JobSpec&, const PreparationOptions&) {
+    return std::make_unique<SyntheticObjective>();
+  };
+  return options;
+}
+
 }  // namespace calib::testing

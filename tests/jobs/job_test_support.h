@@ -2,6 +2,7 @@
 // Shared by the runner and job command tests: a cheap deterministic
 // objective, job specs that use it, and the comparison of two histories.
 
+#include "calib/jobs/job_commands.h"
 #include "calib/jobs/job_spec.h"
 #include "calib/jobs/objective.h"
 #include "calib/results/store.h"
@@ -65,5 +66,9 @@ std::string SmallPushJobYaml(const std::string& name, const std::string& push_ce
 /// recorded_unix_s) and who evaluated it (worker). `what` labels failures.
 void ExpectSameHistory(const std::vector<EvaluationRecord>& expected,
                        const std::vector<EvaluationRecord>& actual, const std::string& what);
+
+/// Options for RunJob / ResumeJob that evaluate SyntheticObjective (no
+/// recording is simulated) on one thread, with no report and no progress.
+JobCommandOptions SyntheticJobCommandOptions();
 
 }  // namespace calib::testing
