@@ -37,7 +37,9 @@ InitialMotion::InitialMotion(const Mesh& mesh, std::span<const uint8_t> clamped)
       probe_(mesh.NumNodes(), Vec2::Zero()),
       force_plus_(mesh.NumNodes(), Vec2::Zero()),
       force_minus_(mesh.NumNodes(), Vec2::Zero()),
-      zero_velocity_(mesh.NumNodes(), Vec2::Zero()) {
+      zero_velocity_(mesh.NumNodes(), Vec2::Zero()),
+      load_field_(mesh.NumNodes(), Vec2::Zero()),
+      candidate_rest_(mesh.NumNodes(), Vec2::Zero()) {
   const auto& p = mesh.rest_positions;
   for (int t = 0; t < mesh.NumTriangles(); ++t) {
     for (int corner : mesh.triangles[t]) node_area_[corner] += mesh.rest_area_px2[t] / 3.0;
@@ -71,8 +73,8 @@ Vec2 InitialMotion::AreaMean(std::span<const Vec2> field) const {
 }
 
 void InitialMotion::ApplyStiffness(const Model& model, const ModelParameters& params,
-                                   std::span<const Vec2> direction, ForceWorkspace& workspace,
-                                   std::span<Vec2> out) {
+                                   std::span<const Vec2> at, std::span<const Vec2> direction,
+                                   ForceWorkspace& workspace, std::span<Vec2> out) {
   double largest = 0.0;
   for (const Vec2& d : direction) largest = std::max(largest, d.cwiseAbs().maxCoeff());
   if (largest == 0.0) {
@@ -80,7 +82,7 @@ void InitialMotion::ApplyStiffness(const Model& model, const ModelParameters& pa
     return;
   }
   const double step = probe_px_ / largest;
-  const auto& x0 = mesh_.rest_positions;
+  const std::span<const Vec2> x0 = at;
   for (size_t i = 0; i < x0.size(); ++i) probe_[i] = x0[i] + step * direction[i];
   model.ComputeForces(params, probe_, zero_velocity_, force_plus_, workspace);
   for (size_t i = 0; i < x0.size(); ++i) probe_[i] = x0[i] - step * direction[i];
@@ -93,12 +95,19 @@ void InitialMotion::ApplyStiffness(const Model& model, const ModelParameters& pa
 }
 
 bool InitialMotion::SolveResponse(const Model& model, const ModelParameters& params,
-                                  const Vec2& load, ForceWorkspace& workspace,
-                                  std::vector<Vec2>& u) {
+                                  std::span<const Vec2> at, const Vec2& load,
+                                  ForceWorkspace& workspace, std::vector<Vec2>& u) {
+  for (size_t i = 0; i < load_field_.size(); ++i) load_field_[i] = movable_[i] * load;
+  return SolveLoad(model, params, at, load_field_, workspace, u);
+}
+
+bool InitialMotion::SolveLoad(const Model& model, const ModelParameters& params,
+                              std::span<const Vec2> at, std::span<const Vec2> load,
+                              ForceWorkspace& workspace, std::vector<Vec2>& u) {
   const size_t n = u.size();
   for (size_t i = 0; i < n; ++i) {
     u[i].setZero();
-    residual_[i] = movable_[i] * load;
+    residual_[i] = movable_[i] * load[i];
     direction_[i] = residual_[i];
   }
   double rr = Dot(residual_, residual_);
@@ -106,7 +115,7 @@ bool InitialMotion::SolveResponse(const Model& model, const ModelParameters& par
   if (load_norm == 0.0) return true;
   const int max_iterations = static_cast<int>(4 * 2 * n) + 50;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
-    ApplyStiffness(model, params, direction_, workspace, k_direction_);
+    ApplyStiffness(model, params, at, direction_, workspace, k_direction_);
     const double curvature = Dot(direction_, k_direction_);
     if (!(curvature > 0.0)) return false;
     const double alpha = rr / curvature;
@@ -129,11 +138,18 @@ bool InitialMotion::Compute(const Model& model, const ModelParameters& params,
   const auto& x0 = mesh_.rest_positions;
   std::copy(x0.begin(), x0.end(), rest_.begin());
   for (Vec2& v : velocity_) v.setZero();
+  from_tracked_shape_ = false;
   if (!applicable_ || !motion.known) return true;
+  if (motion.node_rest_px.size() == x0.size() && motion.node_velocity_px_s.size() == x0.size()) {
+    from_tracked_shape_ = true;
+    std::copy(motion.node_rest_px.begin(), motion.node_rest_px.end(), rest_.begin());
+    std::copy(motion.node_velocity_px_s.begin(), motion.node_velocity_px_s.end(), velocity_.begin());
+    return true;
+  }
 
   for (const auto& [load, response] :
        {std::pair{Vec2(1.0, 0.0), &response_x_}, std::pair{Vec2(0.0, 1.0), &response_y_}}) {
-    if (!SolveResponse(model, params, load, workspace, *response)) {
+    if (!SolveResponse(model, params, mesh_.rest_positions, load, workspace, *response)) {
       if (error != nullptr) {
         *error = fmt::format(
             "inertia: no static response of the clamped mesh to a load along ({}, {}) (the "
@@ -162,6 +178,58 @@ bool InitialMotion::Compute(const Model& model, const ModelParameters& params,
     rest_[i] = x0[i] + shift.x() * response_x_[i] + shift.y() * response_y_[i];
     velocity_[i] = speed.x() * response_x_[i] + speed.y() * response_y_[i];
   }
+  return true;
+}
+
+bool InitialMotion::SubtractStaticResponse(Model& model, const ModelParameters& params,
+                                           const Vec2& load, ForceWorkspace& workspace,
+                                           std::string* error) {
+  if (load.norm() == 0.0) return true;
+  // Newton's method on the rest shape R for F(S; R) + load = 0 at the seen
+  // shape S (rest_ on entry): the forces' derivative in R is the stiffness
+  // K at S, so each step solves K d = F(S; R) + load and moves R by -d. The
+  // first step (from R = S, where F = 0) is the linear sag; the next take
+  // up its nonlinearity.
+  constexpr int kNewtonSteps = 3;
+  constexpr double kSettledPx = 1e-3;
+  const std::vector<Vec2>& seen = rest_;
+  std::copy(seen.begin(), seen.end(), candidate_rest_.begin());
+  for (int step = 0; step < kNewtonSteps; ++step) {
+    model.ComputeForces(params, seen, zero_velocity_, force_plus_, workspace);
+    for (size_t i = 0; i < seen.size(); ++i) load_field_[i] = movable_[i] * (force_plus_[i] + load);
+    if (!SolveLoad(model, params, seen, load_field_, workspace, response_x_)) {
+      if (error != nullptr) {
+        *error = fmt::format(
+            "inertia: no static response of the clamped mesh to gravity (the stiffnesses "
+            "k_distance = {}, k_area = {}, k_angle = {} do not hold it)",
+            params.k_distance, params.k_area, params.k_angle);
+      }
+      return false;
+    }
+    double moved = 0.0;
+    for (size_t i = 0; i < seen.size(); ++i) {
+      candidate_rest_[i] -= response_x_[i];
+      moved = std::max(moved, response_x_[i].norm());
+    }
+    // A rest shape that turns a triangle over ends the steps (the halving
+    // below takes over); so does one that no longer moves.
+    if (model.SetRestShape(candidate_rest_) >= 0 || moved < kSettledPx) break;
+  }
+  // A sag so large that resting above it turns a triangle over (springs
+  // too soft for the gravity): the largest share, by halves, that keeps
+  // every triangle; none at all leaves the rest at the seen shape.
+  constexpr int kHalvings = 10;
+  double share = 1.0;
+  for (int k = 0; k <= kHalvings; ++k, share *= 0.5) {
+    for (size_t i = 0; i < seen.size(); ++i) {
+      probe_[i] = seen[i] + share * (candidate_rest_[i] - seen[i]);
+    }
+    if (model.SetRestShape(probe_) < 0) {
+      std::copy(probe_.begin(), probe_.end(), rest_.begin());
+      return true;
+    }
+  }
+  model.SetRestShape(rest_);
   return true;
 }
 

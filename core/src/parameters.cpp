@@ -16,6 +16,14 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// A stiffness box about the swing stiffness: three decades either way, as
+// wide as the first-order boxes, for the springs' shares of the swing
+// (bending is mostly the angle and area springs', stretching the distance
+// springs') are not known beforehand.
+SearchBox SwingBox(double swing_stiffness) {
+  return SearchBox::Log(swing_stiffness * 1e-3, swing_stiffness * 1e3);
+}
+
 const ParameterSpec* FindSpec(const std::vector<ParameterSpec>& specs, const std::string& name) {
   for (const auto& s : specs) {
     if (s.name == name) return &s;
@@ -67,13 +75,22 @@ const std::vector<ParameterSpec>& BaseModelParameterSpecs() {
       // matter, so the mass is fixed and the stiffnesses are searched on
       // wide log scales (effects move the best stiffnesses).
       {"k_D", "force*px", "distance spring stiffness (edge lengths)", 0.0, kInf, false,
-       [](const SearchScales& s) { return SearchBox::Log(10, 1e5 * s.stiffness_reach); }, nullptr},
+       [](const SearchScales& s) {
+         return s.swing_stiffness > 0.0 ? SwingBox(s.swing_stiffness)
+                                        : SearchBox::Log(10, 1e5 * s.stiffness_reach);
+       }, nullptr},
       {"k_d", "force*px*s", "edge damping (Teschner)", 0.0, kInf, false,
        [](const SearchScales& s) { return SearchBox::Log(1e-3, 100 * s.stiffness_reach); }, nullptr},
       {"k_A", "force*px", "area spring stiffness (signed triangle areas)", 0.0, kInf, false,
-       [](const SearchScales& s) { return SearchBox::Log(0.1, 1e5 * s.stiffness_reach); }, nullptr},
+       [](const SearchScales& s) {
+         return s.swing_stiffness > 0.0 ? SwingBox(s.swing_stiffness)
+                                        : SearchBox::Log(0.1, 1e5 * s.stiffness_reach);
+       }, nullptr},
       {"k_phi", "force*px/rad^2", "angle spring stiffness (corner angles)", 0.0, kInf, false,
-       [](const SearchScales& s) { return SearchBox::Log(0.01, 1e4 * s.stiffness_reach); }, nullptr},
+       [](const SearchScales& s) {
+         return s.swing_stiffness > 0.0 ? SwingBox(s.swing_stiffness)
+                                        : SearchBox::Log(0.01, 1e4 * s.stiffness_reach);
+       }, nullptr},
       {"mass", "force*s^2/px", "mass of each node", 0.0, kInf, true,
        [](const SearchScales&) { return SearchBox::Fixed(kCalibrationMass); }, nullptr},
       {"tau", "1", "share of the push spread evenly over all nodes (translation)", 0.0, 1.0,

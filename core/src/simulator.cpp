@@ -21,8 +21,9 @@ namespace {
 // against the finger's 0.1.)
 constexpr double kEdgeContactEndShare = 0.03;
 
-// 1 for the nodes inside a clamp in frame 0.
-std::vector<uint8_t> MarkClamped(const Mesh& mesh, const Scene& scene) {
+}  // namespace
+
+std::vector<uint8_t> ClampedNodes(const Mesh& mesh, const Scene& scene) {
   std::vector<uint8_t> clamped(mesh.NumNodes(), 0);
   for (int i = 0; i < mesh.NumNodes(); ++i) {
     for (const RectPx& clamp : scene.clamps) {
@@ -31,8 +32,6 @@ std::vector<uint8_t> MarkClamped(const Mesh& mesh, const Scene& scene) {
   }
   return clamped;
 }
-
-}  // namespace
 
 bool SimulationOptions::IsValid(std::string* error) const {
   auto fail = [&](std::string message) {
@@ -75,7 +74,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       options_(options),
       model_(mesh),
       force_workspace_(model_.MakeWorkspace()),
-      clamped_(MarkClamped(mesh, scene)),
+      clamped_(ClampedNodes(mesh, scene)),
       inverse_weight_(mesh.NumNodes(), 1.0),
       x_(mesh.rest_positions),
       x_prev_(mesh.rest_positions),
@@ -193,9 +192,20 @@ void Simulator::StartFromObservedMotion() {
     Fail(std::move(error));
     return;
   }
-  if (model_.SetRestShape(initial_motion_.rest_shape()) >= 0) {
-    // The linear estimate turned a triangle over (a deflection too large for
-    // it): rest at the largest share of it that keeps every triangle.
+  if (initial_motion_.from_tracked_shape() && model_.SetRestShape(initial_motion_.rest_shape()) < 0) {
+    // The tracked shape is where the object hangs, under gravity: the
+    // springs rest where that shape is their equilibrium with it (or as
+    // near as keeps every triangle; the model is left resting there).
+    Vec2 load = Vec2::Zero();
+    for (const EffectTerm* effect : force_effects_) load += effect->UniformNodeForce();
+    if (!initial_motion_.SubtractStaticResponse(model_, params_, load, force_workspace_, &error)) {
+      Fail(std::move(error));
+      return;
+    }
+  } else if (model_.SetRestShape(initial_motion_.rest_shape()) >= 0) {
+    // The estimate turned a triangle over (a deflection too large for the
+    // linear estimate): rest at the largest share of it that keeps every
+    // triangle.
     initial_motion_.LimitDeflection(model_);
   }
   rest_shifted_ = true;

@@ -140,20 +140,6 @@ class Loop {
   std::unique_ptr<StageCalibrator> calibrator_;
 };
 
-// The recording cut to its first `frames` frames (its scene, track and
-// masks), for calibrating on the part of a video before a held-out stretch.
-PreparedRecording FirstFrames(const PreparedRecording& full, int frames) {
-  PreparedRecording p = full;
-  p.recording.num_frames = frames;
-  for (ObstacleTrack& track : p.recording.obstacles) track.discs.resize(static_cast<size_t>(frames));
-  if (!p.recording.forces.empty()) p.recording.forces.resize(static_cast<size_t>(frames));
-  p.object_masks.resize(static_cast<size_t>(frames), p.object_masks.front());
-  p.scene.num_frames = frames;
-  p.scene.obstacle_discs.resize(static_cast<size_t>(frames) * p.scene.num_obstacles);
-  if (!p.scene.forces.empty()) p.scene.forces.resize(static_cast<size_t>(frames));
-  return p;
-}
-
 void Loop::Prepare() {
   std::set<std::string> names;
   auto add = [&](const fs::path& path, std::shared_ptr<const PreparedRecording> prepared,
@@ -389,8 +375,12 @@ LoopResult Loop::Run() {
     for (const std::string& effect : tries) {
       std::vector<std::string> effects = current.effects;
       effects.push_back(effect);
-      Log(fmt::format("round {}: calibrating {} (warm start from {})", round, StageName(effects),
-                      StageName(current.effects)));
+      Log(calibrator_->StartsCold(effects, current)
+              ? fmt::format("round {}: calibrating {} from scratch, over horizons from two swing "
+                            "periods (a first-order fit's stiffnesses are no start for a swing)",
+                            round, StageName(effects))
+              : fmt::format("round {}: calibrating {} (warm start from {})", round,
+                            StageName(effects), StageName(current.effects)));
       Fit fit = calibrator_->Calibrate(index, effects, &current);
       calibrator_->MeasureEquallyGood(&fit);
       // The reference: the previous model, or the previous model with the

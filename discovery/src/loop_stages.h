@@ -118,6 +118,10 @@ class StageCalibrator {
   /// (independent searches) or warm-started from the fit `warm` of the
   /// model without the last effect. Measured on every recording.
   Fit Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm);
+  /// Whether Calibrate starts `effects` from scratch although a fit `warm`
+  /// of the model without its last effect is given: adding inertia to a
+  /// first-order model of a swinging object (SearchScales::swing_stiffness).
+  bool StartsCold(const std::vector<std::string>& effects, const Fit& warm) const;
   /// The fit's results and residuals on every recording.
   void Measure(Fit* fit) const;
   /// The spread of the held-out error over the fit's equally good fits.
@@ -137,7 +141,14 @@ class StageCalibrator {
                                             const std::vector<std::string>& effects,
                                             const std::vector<ParameterSetting>& settings,
                                             const std::vector<double>* x0, double sigma,
-                                            int64_t budget, uint64_t seed, Fit* fit);
+                                            int64_t budget, uint64_t seed, Fit* fit,
+                                            int frames = 0);
+  // Calibration of a model with inertia on a freely swinging object
+  // (SearchScales::swing_stiffness): horizons lengthening from two swing
+  // periods to the whole recordings. Returns the fit's values.
+  ParameterValues CalibrateSwing(int index, const std::vector<std::string>& effects,
+                                 const std::vector<ParameterSetting>& settings, int64_t budget,
+                                 uint64_t seed, Fit* fit);
   double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const;
   std::vector<int> HeldOutIndices() const;
   /// Held-out recordings are there and none is a stretch of a training video.

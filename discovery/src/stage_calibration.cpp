@@ -4,7 +4,10 @@
 #include "calib/discovery/stage_calibration.h"
 
 #include "calib/core/effects.h"
+#include "calib/core/free_modes.h"
 #include "calib/core/model_definition.h"
+#include "calib/discovery/signals.h"
+#include "calib/evaluator/mask_geometry.h"
 #include "calib/jobs/batch_evaluator.h"
 #include "calib/jobs/job_spec.h"
 #include "calib/jobs/runner.h"
@@ -35,6 +38,34 @@ double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass) {
   return mesh.NumNodes() * mass * speed;
 }
 
+SwingScale MeasureSwingScale(const PreparedRecording& prepared) {
+  SwingScale scale;
+  const Scene::ObservedMotion& motion = prepared.scene.motion;
+  if (!motion.known || motion.node_rest_px.size() != static_cast<size_t>(prepared.mesh.NumNodes())) return scale;
+  std::vector<double> x, y;
+  x.reserve(prepared.object_masks.size());
+  y.reserve(prepared.object_masks.size());
+  for (const BitMask& mask : prepared.object_masks) {
+    const MaskMoments moments = ComputeMoments(mask);
+    x.push_back(moments.centroid_px.x());
+    y.push_back(moments.centroid_px.y());
+  }
+  const double fps = prepared.recording.fps;
+  const Oscillation along_x = DetectOscillation(x, fps), along_y = DetectOscillation(y, fps);
+  const Oscillation* swing = nullptr;
+  for (const Oscillation* o : {&along_x, &along_y}) {
+    if (o->found && (swing == nullptr || o->amplitude > swing->amplitude)) swing = o;
+  }
+  if (swing == nullptr) return scale;
+  scale.period_s = swing->period_s;
+  scale.decay_per_s = swing->decay_per_s;
+  scale.mode_rate = SlowestModeRate(prepared.mesh, ClampedNodes(prepared.mesh, prepared.scene),
+                                    motion.node_rest_px);
+  scale.stiffness = SwingStiffness(scale.mode_rate, scale.period_s, kCalibrationMass);
+  scale.found = std::isfinite(scale.stiffness) && scale.stiffness > 0.0;
+  return scale;
+}
+
 SearchScales TrainingScales(const std::vector<std::shared_ptr<const PreparedRecording>>& training,
                             const SimulationOptions& simulation) {
   SearchScales scales;
@@ -53,11 +84,20 @@ SearchScales TrainingScales(const std::vector<std::shared_ptr<const PreparedReco
     first = false;
   }
   scales.stiffness_reach = simulation.integrator == IntegratorKind::kImplicitFirstOrder ? 100.0 : 1.0;
+  if (!training.empty()) {
+    const SwingScale swing = MeasureSwingScale(*training.front());
+    if (swing.found) {
+      scales.swing_stiffness = swing.stiffness;
+      scales.swing_period_s = swing.period_s;
+    }
+  }
   return scales;
 }
 
 std::vector<ParameterSetting> StageParameterSettings(const std::vector<std::string>& effects,
-                                                     const SearchScales& scales) {
+                                                     const SearchScales& training_scales) {
+  SearchScales scales = training_scales;
+  if (std::find(effects.begin(), effects.end(), "inertia") == effects.end()) scales.swing_stiffness = 0.0;
   std::vector<ParameterSetting> out;
   for (const ParameterSpec& spec : ModelParameterSpecs(ModelDefinition{effects})) {
     const SearchBox box = spec.SearchBoxFor(scales);
@@ -175,7 +215,8 @@ std::pair<ParameterValues, double> StageCalibrator::RunJob(const std::string& na
                                                 const std::vector<std::string>& effects,
                                                 const std::vector<ParameterSetting>& settings,
                                                 const std::vector<double>* x0, double sigma,
-                                                int64_t budget, uint64_t seed, Fit* fit) {
+                                                int64_t budget, uint64_t seed, Fit* fit,
+                                                int frames) {
   // The store keeps the job as a job spec (the request plus the
   // recordings, the model and where results go), as for `calib run`.
   JobSpec spec;
@@ -189,6 +230,7 @@ std::pair<ParameterValues, double> StageCalibrator::RunJob(const std::string& na
   spec.model.effects = effects;
   spec.model.simulation = o_.simulation;
   spec.model.preparation = o_.preparation;
+  spec.model.preparation.max_frames = frames;
   spec.threads = threads_;
   spec.results.store = spec.base_dir / "store.sqlite";
   spec.results.out_dir = spec.base_dir;
@@ -196,7 +238,9 @@ std::pair<ParameterValues, double> StageCalibrator::RunJob(const std::string& na
 
   std::vector<std::shared_ptr<const PreparedRecording>> train;
   for (const LoopRecording& r : recs_) {
-    if (r.train) train.push_back(r.prepared);
+    if (!r.train) continue;
+    train.push_back(frames > 0 ? std::make_shared<const PreparedRecording>(FirstFrames(*r.prepared, frames))
+                               : r.prepared);
   }
   RecordingObjective objective(train, o_.simulation, ModelDefinition{effects});
   const std::unique_ptr<BatchEvaluator> evaluator = MakeEvaluator(objective);
@@ -223,8 +267,110 @@ double StageCalibrator::TrainingScore(const std::vector<std::string>& effects, c
   return result.ok() ? result.score : std::numeric_limits<double>::infinity();
 }
 
+ParameterValues StageCalibrator::CalibrateSwing(int index, const std::vector<std::string>& effects,
+                                                const std::vector<ParameterSetting>& settings,
+                                                int64_t budget, uint64_t seed, Fit* fit) {
+  // A swing a few per cent off the video's period is out of phase within a
+  // few of its cycles, and a still mesh on the mean pose then scores better
+  // than any swing: over the whole recording the score has no slope towards
+  // the right period. Over two periods it has. So the horizon starts at two
+  // swing periods, where independent searches find the swing, and doubles
+  // to the whole recordings, each horizon's search starting from the
+  // previous best with a small step.
+  int shortest = std::numeric_limits<int>::max();
+  double fps = 0.0;
+  for (const LoopRecording& r : recs_) {
+    if (!r.train) continue;
+    shortest = std::min(shortest, r.prepared->scene.num_frames);
+    if (fps == 0.0) fps = r.prepared->recording.fps;
+  }
+  std::vector<int> horizons;
+  for (int h = static_cast<int>(std::ceil(2.0 * scales_.swing_period_s * fps)); h > 0 && h < shortest;
+       h *= 2) {
+    horizons.push_back(h);
+  }
+  horizons.push_back(0);  // the whole recordings
+  constexpr int64_t kMinJob = 24;
+  const int64_t first_budget =
+      horizons.size() == 1 ? budget : std::max<int64_t>(kMinJob, budget / 2);
+  const int64_t later_budget =
+      horizons.size() == 1
+          ? 0
+          : std::max<int64_t>(kMinJob, (budget - first_budget) / static_cast<int64_t>(horizons.size() - 1));
+  const std::string base_name = JobName(index, effects);
+  const auto horizon_name = [&](int h) {
+    return h == 0 ? base_name : fmt::format("{}-frames{}", base_name, h);
+  };
+
+  // The first horizon: independent searches, as a cold calibration.
+  const int dimension = SearchSpace(settings).dimension();
+  ParameterValues best_values;
+  double best = std::numeric_limits<double>::infinity();
+  for (int r = 0; r < o_.restarts; ++r) {
+    const std::vector<double> x0 = RestartStart(dimension, seed, r);
+    const std::string name = horizon_name(horizons.front()) + (r == 0 ? "" : fmt::format("-restart{}", r));
+    const auto [values, score] = RunJob(name, effects, settings, r == 0 ? nullptr : &x0, 0.3, first_budget,
+                                        seed + 100000 * static_cast<uint64_t>(r), fit, horizons.front());
+    fit->restart_training_xor.push_back(score);
+    if (score < best) {
+      best = score;
+      best_values = values;
+    }
+  }
+  if (best_values.empty()) {
+    throw std::runtime_error(fmt::format(
+        "loop: calibrating {} found no candidate that simulates the first {} frames of every "
+        "training recording",
+        StageName(effects), horizons.front()));
+  }
+  // Longer horizons, each from the previous best. The last (the whole
+  // recordings) is the fit; the best before it competes there, for a
+  // search from a point need not evaluate the point itself.
+  constexpr double kHorizonSigma = 0.1;
+  double whole_score = std::numeric_limits<double>::infinity();
+  ParameterValues before_whole = best_values;
+  for (size_t k = 1; k < horizons.size(); ++k) {
+    std::vector<double> x0 = SearchSpace(settings).ToUnit(best_values);
+    for (double& u : x0) u = std::clamp(u, 0.0, 1.0);
+    if (k + 1 == horizons.size()) before_whole = best_values;
+    const auto [values, score] = RunJob(horizon_name(horizons[k]), effects, settings, &x0, kHorizonSigma,
+                                        later_budget, seed + 500 + k, fit, horizons[k]);
+    if (!std::isfinite(score)) continue;  // nothing simulated: keep the previous best
+    best_values = values;
+    if (k + 1 == horizons.size()) whole_score = score;
+  }
+  if (horizons.size() > 1) {
+    const double before = TrainingScore(effects, before_whole);
+    ++fit->evaluations;
+    if (before < whole_score) best_values = before_whole;
+    if (!std::isfinite(std::min(before, whole_score))) {
+      throw std::runtime_error(fmt::format(
+          "loop: calibrating {}: no fit on the first frames simulates the whole training recordings",
+          StageName(effects)));
+    }
+  }
+  return best_values;
+}
+
+namespace {
+
+bool HasInertia(const std::vector<std::string>& effects) {
+  return std::find(effects.begin(), effects.end(), "inertia") != effects.end();
+}
+
+}  // namespace
+
+bool StageCalibrator::StartsCold(const std::vector<std::string>& effects, const Fit& warm) const {
+  // A first-order fit's stiffnesses set relaxation rates; with inertia on
+  // a swinging object they set the swing's period, orders of magnitude
+  // apart (the boxes move to the swing stiffness): nothing to warm-start
+  // from.
+  return scales_.swing_stiffness > 0.0 && HasInertia(effects) && !HasInertia(warm.effects);
+}
+
 Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm) {
   const Clock::time_point start = Clock::now();
+  if (warm != nullptr && StartsCold(effects, *warm)) warm = nullptr;
   SearchScales scales = scales_;
   if (warm != nullptr) scales.reference = warm->values;
   const std::vector<ParameterSetting> settings = StageParameterSettings(effects, scales);
@@ -232,7 +378,9 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
   const uint64_t seed = o_.seed * 1000 + static_cast<uint64_t>(index);
   Fit fit;
   fit.effects = effects;
-  if (warm == nullptr) {
+  if (warm == nullptr && scales_.swing_stiffness > 0.0 && HasInertia(effects)) {
+    fit.values = CalibrateSwing(index, effects, settings, budget, seed, &fit);
+  } else if (warm == nullptr) {
     // Independent searches; the best on the training recordings is the fit
     // (the first on ties, so one restart is the plain search).
     const int dimension = SearchSpace(settings).dimension();

@@ -3,6 +3,7 @@
 #include "calib/core/enum_names.h"
 #include "calib/evaluator/contour.h"
 #include "calib/evaluator/mask_geometry.h"
+#include "calib/evaluator/shape_tracking.h"
 
 #include <Eigen/QR>
 
@@ -21,6 +22,20 @@ bool PreparationOptions::IsValid(std::string* error) const {
       *error = fmt::format(
           "PreparationOptions::outline_tolerance_px = {}. Violated: outline_tolerance_px >= 0.",
           outline_tolerance_px);
+    }
+    return false;
+  }
+  if (max_frames < 0) {
+    if (error != nullptr) {
+      *error = fmt::format("PreparationOptions::max_frames = {}. Violated: max_frames >= 0.", max_frames);
+    }
+    return false;
+  }
+  if (!(motion_window_s > 0.0) || !std::isfinite(motion_window_s)) {
+    if (error != nullptr) {
+      *error = fmt::format(
+          "PreparationOptions::motion_window_s = {}. Violated: motion_window_s > 0 and finite.",
+          motion_window_s);
     }
     return false;
   }
@@ -81,6 +96,39 @@ Scene::ObservedMotion EstimateObservedMotion(const Recording& recording,
   return motion;
 }
 
+PreparedRecording FirstFrames(const PreparedRecording& prepared, int frames) {
+  if (frames < 1) {
+    throw std::invalid_argument(fmt::format("FirstFrames: {} frames asked; at least 1", frames));
+  }
+  PreparedRecording cut = prepared;
+  const int n = std::min(frames, prepared.scene.num_frames);
+  cut.object_masks.resize(n);
+  cut.scene.num_frames = n;
+  cut.scene.obstacle_discs.resize(static_cast<size_t>(n) * cut.scene.num_obstacles);
+  if (!cut.scene.forces.empty()) cut.scene.forces.resize(n);
+  Recording& rec = cut.recording;
+  rec.num_frames = n;
+  for (ObstacleTrack& track : rec.obstacles) {
+    if (track.discs.size() > static_cast<size_t>(n)) track.discs.resize(n);
+  }
+  if (rec.forces.size() > static_cast<size_t>(n)) rec.forces.resize(n);
+  return cut;
+}
+
+void TrackObservedMotion(PreparedRecording& prepared, double window_s) {
+  Scene::ObservedMotion& motion = prepared.scene.motion;
+  const Mesh& mesh = prepared.mesh;
+  const std::vector<uint8_t> clamped = ClampedNodes(mesh, prepared.scene);
+  const double fps = prepared.recording.fps;
+  const int available = static_cast<int>(prepared.object_masks.size());
+  if (available < 2) return;
+  const int window = std::clamp(static_cast<int>(std::lround(window_s * fps)), 2, available);
+  const TrackedShapes tracked = TrackMesh(mesh, clamped, prepared.object_masks, window);
+  NodeMotion node = EstimateNodeMotion(mesh, clamped, tracked, fps, window, std::min(window, 5));
+  motion.node_rest_px = std::move(node.rest_shape_px);
+  motion.node_velocity_px_s = std::move(node.velocity_px_s);
+}
+
 PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
@@ -97,6 +145,12 @@ PreparedRecording PrepareRecording(const Recording& recording, const Preparation
   prepared.mesh_quality = MeasureQuality(prepared.mesh);
   prepared.scene = BuildScene(recording);
   prepared.scene.motion = EstimateObservedMotion(recording, prepared.object_masks);
+  if (prepared.scene.motion.known && options.track_motion) {
+    TrackObservedMotion(prepared, options.motion_window_s);
+  }
+  if (options.max_frames > 0 && options.max_frames < prepared.scene.num_frames) {
+    prepared = FirstFrames(prepared, options.max_frames);
+  }
   return prepared;
 }
 

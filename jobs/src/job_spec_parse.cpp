@@ -171,6 +171,10 @@ void ReadModel(MapReader r, ModelSpec* m, const ModelCatalog& catalog) {
   if (!(prep.outline_tolerance_px >= 0.0)) {
     r.Fail(r.KeyPath("outline_tolerance_px"), r.node()["outline_tolerance_px"], "must be >= 0");
   }
+  r.Read("frames", &prep.max_frames);
+  if (prep.max_frames < 0) {
+    r.Fail(r.KeyPath("frames"), r.node()["frames"], "must be >= 0 (0: every frame)");
+  }
   r.Finish();
   // Guards against rules added to the options after this reader was written.
   std::string error;

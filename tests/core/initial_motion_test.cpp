@@ -210,5 +210,47 @@ TEST(InitialMotion, ADeflectionTooLargeForTheLinearEstimateIsScaledDown) {
   }
 }
 
+TEST(InitialMotion, ATrackedShapeHangsInEquilibriumUnderGravityAndMovesWithTheTrackedVelocities) {
+  // The scene's motion as tracked from a video: the strip hangs straight
+  // (the mesh) and starts still. With gravity the springs rest above it,
+  // by the sag gravity gives them, so the strip stays where it was seen.
+  const Mesh mesh = HangingStrip();
+  Scene scene = SwingScene(60, Vec2::Zero(), Vec2::Zero());
+  scene.motion.node_rest_px = mesh.rest_positions;
+  scene.motion.node_velocity_px_s.assign(mesh.NumNodes(), Vec2::Zero());
+  ParameterValues values = InertiaValues(0.0);
+  for (const char* k : {"k_D", "k_A", "k_phi"}) values[k] = 2e4;  // sags a pixel or two
+  values["gravity_px_s2"] = 400.0;
+  values["gravity_angle_deg"] = 90.0;
+  Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
+  sim.Reset(values);
+  ASSERT_EQ(sim.status(), SimulationStatus::kRunning) << sim.failure_reason();
+  const double sag = MaxNorm(Difference(sim.rest_shape(), mesh.rest_positions));
+  ASSERT_GT(sag, 0.2) << "gravity moves the rest shape up by its sag";
+  ASSERT_LT(sag, 5.0);
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    EXPECT_LE(sim.rest_shape()[i].y(), mesh.rest_positions[i].y() + 1e-9) << "node " << i;
+  }
+  double drift = 0.0;
+  while (sim.Advance()) drift = std::max(drift, MaxNorm(Difference(sim.positions(), mesh.rest_positions)));
+  ASSERT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
+  EXPECT_LT(drift, 0.05 * sag) << "the tracked shape is the equilibrium (to the linear estimate)";
+
+  // The tracked velocities are the start's, node by node.
+  std::vector<Vec2> velocity(mesh.NumNodes(), Vec2::Zero());
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    if (mesh.rest_positions[i].y() > 101.0) velocity[i] = Vec2(0.3 * (mesh.rest_positions[i].y() - 100.0), 0.0);
+  }
+  scene.motion.node_velocity_px_s = velocity;
+  Simulator moving(mesh, scene, {}, ModelDefinition{{"inertia"}});
+  moving.Reset(values);
+  ASSERT_EQ(moving.status(), SimulationStatus::kRunning) << moving.failure_reason();
+  for (int i = 0; i < mesh.NumNodes(); ++i) EXPECT_EQ(moving.initial_velocities()[i], velocity[i]);
+  ASSERT_TRUE(moving.Advance());
+  const int foot = mesh.NumNodes() - 2;
+  EXPECT_NEAR(moving.positions()[foot].x() - mesh.rest_positions[foot].x(), velocity[foot].x() / 240.0,
+              0.1 * velocity[foot].x() / 240.0);
+}
+
 }  // namespace
 }  // namespace calib

@@ -448,6 +448,29 @@ TEST(Loop, SearchBoxesCoverEveryEffectAndNeutralValuesLieInThem) {
   EXPECT_THROW(StageParameterSettings({"levitation"}, scales), std::invalid_argument);
 }
 
+TEST(Loop, TheStagesWithInertiaSearchTheStiffnessesAboutTheSwingStiffness) {
+  SearchScales scales;
+  scales.swing_stiffness = 2.0e6;
+  scales.swing_period_s = 0.25;
+  const auto box_of = [](const std::vector<ParameterSetting>& settings, const std::string& name) {
+    const auto it = std::find_if(settings.begin(), settings.end(),
+                                 [&](const ParameterSetting& s) { return s.name == name; });
+    return it == settings.end() ? std::pair<double, double>{-1.0, -1.0}
+                                : std::pair<double, double>{it->lower, it->upper};
+  };
+  const auto with_inertia = StageParameterSettings({"inertia", "plasticity"}, scales);
+  const auto without = StageParameterSettings({"plasticity"}, scales);
+  SearchScales first_order = scales;
+  first_order.swing_stiffness = 0.0;
+  const auto reference = StageParameterSettings({"plasticity"}, first_order);
+  for (const char* name : {"k_D", "k_A", "k_phi"}) {
+    const auto [lower, upper] = box_of(with_inertia, name);
+    EXPECT_NEAR(std::sqrt(lower * upper), 2.0e6, 1e-6) << name << ": centred on the swing stiffness";
+    EXPECT_NEAR(upper / lower, 1e6, 1e-3) << name;
+    EXPECT_EQ(box_of(without, name), box_of(reference, name)) << name << ": no inertia, no swing box";
+  }
+}
+
 TEST(Loop, TableFrictionIsSizedOnTheModelsDragNotOnTheSensor) {
   // A patch of 4 x 3 cells (20 nodes); the disc moves 3 px in frame 1
   // (90 px/s at 30 fps), then 1 px a frame.

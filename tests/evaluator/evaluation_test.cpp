@@ -13,6 +13,7 @@
 
 #include <cmath>
 #include <functional>
+#include <stdexcept>
 #include <vector>
 
 namespace calib {
@@ -82,6 +83,24 @@ TEST(Evaluator, ScoresTheCoverageAndHandsOnTheHalfCoveredPixels) {
     EXPECT_EQ(plain.frames[f].xor_px, result.frames[f].xor_px) << "frame " << f;
   }
   EXPECT_EQ(plain.xor_sum, result.xor_sum);
+}
+
+TEST(FirstFrames, ScoresTheFirstFramesExactlyAsTheWholeRecordingDoes) {
+  const PreparedRecording cut = FirstFrames(Reference(), 25);
+  EXPECT_EQ(cut.scene.num_frames, 25);
+  EXPECT_EQ(cut.recording.num_frames, 25);
+  EXPECT_EQ(cut.object_masks.size(), 25u);
+  EXPECT_EQ(cut.scene.forces.size(), Reference().scene.forces.empty() ? 0u : 25u);
+  EXPECT_EQ(cut.scene.obstacle_discs.size(), 25u * static_cast<size_t>(cut.scene.num_obstacles));
+  Evaluator whole(Reference(), {});
+  Evaluator first(cut, {});
+  const EvaluationResult a = whole.Evaluate(bench::ReferenceParameters());
+  const EvaluationResult b = first.Evaluate(bench::ReferenceParameters());
+  ASSERT_EQ(b.frames.size(), 25u);
+  for (size_t f = 0; f < b.frames.size(); ++f) EXPECT_EQ(b.frames[f].xor_px, a.frames[f].xor_px) << f;
+  EXPECT_EQ(FirstFrames(Reference(), 1000).scene.num_frames, Reference().scene.num_frames)
+      << "more frames than it has: all of them";
+  EXPECT_THROW(FirstFrames(Reference(), 0), std::invalid_argument);
 }
 
 TEST(Evaluator, IdenticalInputGivesBitIdenticalScore) {

@@ -325,6 +325,23 @@ TEST(JobSpec, WrongTypeIsNamed) {
   EXPECT_CONTAINS(t, "train = 'rec_a': expected a list");
 }
 
+TEST(JobSpec, TheFramesKeyLimitsTheScoredFramesAndANegativeCountIsNamed) {
+  const fs::path dir = MakeJobFolder("job_spec_frames");
+  YAML::Node root = YAML::Load(kValidSpec);
+  EXPECT_EQ(ParseJobSpec(std::string(kValidSpec), "job.yaml", dir).model.preparation.max_frames, 0)
+      << "every frame by default";
+  root["model"]["frames"] = 240;
+  YAML::Emitter out;
+  out << root;
+  const JobSpec spec = ParseJobSpec(std::string(out.c_str()), "job.yaml", dir);
+  EXPECT_EQ(spec.model.preparation.max_frames, 240);
+  const nlohmann::json canonical = ToJson(spec);
+  EXPECT_EQ(canonical["model"]["frames"], 240);
+  EXPECT_EQ(ParseJobSpec(canonical, "stored spec", dir).model.preparation.max_frames, 240);
+  const std::string m = ErrorOf([](YAML::Node& r) { r["model"]["frames"] = -5; });
+  EXPECT_CONTAINS(m, "model.frames = '-5': must be >= 0");
+}
+
 TEST(JobSpec, UnknownKeyIsNamedWithASuggestion) {
   const std::string m = ErrorOf([](YAML::Node& r) { r["optimiser"] = r["optimizer"]; });
   EXPECT_CONTAINS(m, "job.yaml: optimiser = {name: cmaes, ");

@@ -75,6 +75,8 @@ class InertiaEffect final : public EffectTerm {
     for (Vec2& f : forces) f += body_force_;
   }
 
+  Vec2 UniformNodeForce() const override { return body_force_; }
+
   std::optional<double> SecondOrderDamping() const override { return damping_per_s_; }
 
  private:

@@ -144,6 +144,12 @@ class EffectTerm {
   /// end of a video frame of length frame_time_s (after its last substep).
   virtual void AfterFrame(std::span<const Vec2> x, double frame_time_s);
 
+  /// The part of AddForces that is one constant force on every node
+  /// (gravity's m g), force units; zero for most effects. A simulation that
+  /// starts from an observed motion rests its springs where the observed
+  /// shape is in equilibrium under it (Simulator::Reset).
+  virtual Vec2 UniformNodeForce() const { return Vec2::Zero(); }
+
   /// hooks().dynamics: the velocity damping (1/s) of the second-order step
   /// the simulator switches to, x += h (v / (1 + h c)) + h^2 F / m.
   virtual std::optional<double> SecondOrderDamping() const { return std::nullopt; }

@@ -24,6 +24,12 @@
 // Linear: large deflections stretch R (the linear response of a rotation);
 // where a triangle turns over in R, the largest share of the deflection that
 // keeps every triangle is used (LimitDeflection).
+//
+// Where the evaluator tracked the mesh through the video (Scene::
+// ObservedMotion's node fields, evaluator/shape_tracking.h), the tracked
+// rest shape and node velocities are taken as they are instead, and the
+// springs rest above the tracked shape by gravity's sag
+// (SubtractStaticResponse).
 
 #include "calib/core/mesh.h"
 #include "calib/core/model.h"
@@ -57,6 +63,23 @@ class InitialMotion {
   bool Compute(const Model& model, const ModelParameters& params,
                const Scene::ObservedMotion& motion, ForceWorkspace& workspace, std::string* error);
 
+  /// After Compute from the tracked shape (Scene::ObservedMotion's node
+  /// fields), with `model` resting at rest_shape(): moves the rest shape so
+  /// that the tracked shape is the equilibrium under the constant force
+  /// `load` on every movable node (gravity's m g), rest -= K^-1 load, K the
+  /// stiffness at the tracked shape, refined by up to three Newton steps on
+  /// F(S; rest) + load = 0. Where that turns a triangle over, the largest
+  /// share of it by halves (none: the tracked shape). Leaves `model`
+  /// resting at the new rest_shape(); the velocities stay. Returns false
+  /// with *error set when K cannot be solved (a stiffness too low to hold
+  /// the mesh).
+  bool SubtractStaticResponse(Model& model, const ModelParameters& params, const Vec2& load,
+                              ForceWorkspace& workspace, std::string* error);
+
+  /// Whether the last Compute took the tracked shape (node fields) rather
+  /// than the estimate from the centroid.
+  bool from_tracked_shape() const { return from_tracked_shape_; }
+
   /// After Compute: scales the deflection rest_shape() - frame 0 (and the
   /// velocities alike) down by halves until model.SetRestShape(rest_shape())
   /// accepts it, and leaves `model` resting there (at frame 0 when no share
@@ -69,9 +92,13 @@ class InitialMotion {
  private:
   // Solves K u = f (f: `direction` on every movable node) by conjugate
   // gradients, K applied as central differences of the model's forces.
-  bool SolveResponse(const Model& model, const ModelParameters& params, const Vec2& direction,
-                     ForceWorkspace& workspace, std::vector<Vec2>& u);
-  void ApplyStiffness(const Model& model, const ModelParameters& params,
+  // K is taken at the positions `at` (#N). SolveLoad solves K u = load
+  // (#N, zero on clamped nodes), SolveResponse for the uniform `load`.
+  bool SolveLoad(const Model& model, const ModelParameters& params, std::span<const Vec2> at,
+                 std::span<const Vec2> load, ForceWorkspace& workspace, std::vector<Vec2>& u);
+  bool SolveResponse(const Model& model, const ModelParameters& params, std::span<const Vec2> at,
+                     const Vec2& direction, ForceWorkspace& workspace, std::vector<Vec2>& u);
+  void ApplyStiffness(const Model& model, const ModelParameters& params, std::span<const Vec2> at,
                       std::span<const Vec2> direction, ForceWorkspace& workspace,
                       std::span<Vec2> out);
   Vec2 AreaMean(std::span<const Vec2> field) const;
@@ -82,12 +109,15 @@ class InitialMotion {
   double total_area_ = 0.0;
   double probe_px_ = 0.0;           // finite-difference step of K v
   bool applicable_ = false;
+  bool from_tracked_shape_ = false;
 
   std::vector<Vec2> response_x_, response_y_;
   std::vector<Vec2> rest_, velocity_;
   // Conjugate-gradient and probe buffers.
   std::vector<Vec2> residual_, direction_, k_direction_, probe_, force_plus_, force_minus_,
       zero_velocity_;
+  // SubtractStaticResponse's load and rest shape in the making.
+  std::vector<Vec2> load_field_, candidate_rest_;
 };
 
 }  // namespace calib

@@ -49,6 +49,16 @@ struct SearchScales {
   /// implicit step, which is stable there (the quasi-static regime of a
   /// pushed sponge); 1 with an explicit step.
   double stiffness_reach = 1.0;
+  /// With inertia, for an object the video shows swinging freely: the
+  /// common stiffness (k_D = k_A = k_phi, force*px) at which the model's
+  /// slowest free vibration, nodes of the calibration mass, has the period
+  /// the video shows (free_modes.h). The stiffness boxes are then centred
+  /// on it: the second-order model's stiffness is set by the swing's
+  /// period, not by the first-order model's relaxation. 0: not known, or
+  /// the model has no inertia.
+  double swing_stiffness = 0.0;
+  /// The swing's period it was set from, s (0 with it).
+  double swing_period_s = 0.0;
   /// The previous fit's values, when a calibration continues one (an
   /// effect's box may scale with a base value, e.g. k_D); empty otherwise.
   std::map<std::string, double> reference;

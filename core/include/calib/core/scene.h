@@ -3,7 +3,10 @@
 // frame, the measured push, and the clamps. Built from a recording by the
 // evaluator; the simulator only reads it.
 
+#include "calib/core/mesh.h"
 #include "calib/core/types.h"
+
+#include <cstdint>
 
 #include <vector>
 
@@ -35,6 +38,12 @@ struct Scene {
     Vec2 equilibrium_offset_px = Vec2::Zero();
     /// Velocity of the object's centroid in frame 0.
     Vec2 initial_velocity_px_s = Vec2::Zero();
+    /// Per node of the prepared mesh (#N), where the evaluator tracked the
+    /// mesh through the video (evaluator/shape_tracking.h): the shape the
+    /// object moves about and every node's velocity at frame 0. Empty
+    /// otherwise; when set they replace the estimate from the centroid.
+    std::vector<Vec2> node_rest_px;
+    std::vector<Vec2> node_velocity_px_s;
   };
   ObservedMotion motion;
 
@@ -42,5 +51,9 @@ struct Scene {
     return obstacle_discs.data() + static_cast<size_t>(frame) * num_obstacles;
   }
 };
+
+/// 1 for the nodes of `mesh` that lie in one of the scene's clamps in
+/// frame 0 (the mesh's rest positions), 0 for the others.
+std::vector<uint8_t> ClampedNodes(const Mesh& mesh, const Scene& scene);
 
 }  // namespace calib

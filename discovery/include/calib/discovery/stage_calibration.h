@@ -28,9 +28,25 @@ namespace calib {
 /// (px/s); 0 without a moving obstacle.
 double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass);
 
+/// What a recording of an object swinging freely says about the stiffness
+/// of a model with inertia (SearchScales::swing_stiffness).
+struct SwingScale {
+  bool found = false;     ///< a free motion with a detectable period
+  double period_s = 0.0;  ///< of the object's centroid (x or y, the larger swing)
+  double decay_per_s = 0.0;
+  double mode_rate = 0.0;  ///< SlowestModeRate of the mesh at its tracked rest shape
+  double stiffness = 0.0;  ///< SwingStiffness at the calibration mass
+};
+
+/// The swing scale of `prepared`: found when its scene's motion has the
+/// tracked rest shape (TrackObservedMotion), the centroid of its masks
+/// oscillates (DetectOscillation) and the clamps hold its mesh.
+SwingScale MeasureSwingScale(const PreparedRecording& prepared);
+
 /// The scales of the training recordings `training` (>= 1), combined as
 /// SearchScales says, for a model simulated with `simulation` (the implicit
-/// step reaches 100x stiffer).
+/// step reaches 100x stiffer); swing_stiffness from the first training
+/// recording (MeasureSwingScale), used by the stages with inertia.
 SearchScales TrainingScales(const std::vector<std::shared_ptr<const PreparedRecording>>& training,
                             const SimulationOptions& simulation);
 

@@ -30,6 +30,17 @@ struct PreparationOptions {
   MesherOptions mesher;
   /// Tolerance of the outline simplification (cv::approxPolyDP), pixels.
   double outline_tolerance_px = 1.5;
+  /// For an object that moves by itself (clamps, no obstacles): track the
+  /// mesh through the first `motion_window_s` seconds of the video
+  /// (shape_tracking.h) and start a model with inertia from every node's
+  /// observed velocity, resting at the tracked shapes' mean
+  /// (TrackObservedMotion). Off: the estimate from the centroid's motion.
+  bool track_motion = true;
+  double motion_window_s = 1.0;
+  /// Only the first `max_frames` frames of the recording are simulated and
+  /// scored (a calibration on a short horizon); 0: every frame. The
+  /// observed motion is estimated before the cut, as without it.
+  int max_frames = 0;
   /// Where segmentations are cached; empty: no disk cache.
   std::filesystem::path cache_dir = DefaultSegmentationCacheDir();
 
@@ -58,6 +69,18 @@ Scene BuildScene(const Recording& recording);
 /// Frames without object pixels are skipped.
 Scene::ObservedMotion EstimateObservedMotion(const Recording& recording,
                                              std::span<const BitMask> masks);
+
+/// `prepared` cut to its first `frames` frames (1 <= frames; more than it
+/// has: all of them): masks, scene (obstacles, forces) and the recording's
+/// frame count and tracks. The mesh and the observed motion stay.
+PreparedRecording FirstFrames(const PreparedRecording& prepared, int frames);
+
+/// Tracks prepared.mesh through the first `window_s` seconds of
+/// prepared.object_masks (at least two frames, at most all) and sets the
+/// per-node fields of prepared.scene.motion: the rest shape is the mean of
+/// the tracked shapes over the window, each node's velocity the slope at
+/// frame 0 of a quadratic through its first five tracked positions.
+void TrackObservedMotion(PreparedRecording& prepared, double window_s);
 
 /// Segments (or reads the cached segmentation of) every frame, meshes the
 /// frame-0 object and builds the scene (with the observed motion). Throws RecordingError for an

@@ -1,0 +1,92 @@
+#pragma once
+// The object's shape in every frame: the frame-0 mesh tracked through the
+// video's segmentation.
+//
+// A clamped object released from a bent pose is, in frame 0, neither at rest
+// nor still. What a model with inertia needs to start from (its rest shape,
+// every node's velocity at frame 0) is in the video: TrackMesh follows the
+// mesh's nodes from frame to frame by registering the mesh to each frame's
+// object outline, and EstimateNodeMotion derives the start from the tracked
+// shapes.
+//
+// Registration, per frame (as-rigid-as-possible deformation with an
+// outline-matching term, alternated to convergence):
+//
+//   E(x) = sum_t sum_{edges ij of t} |(x_i - x_j) - R_t (X_i - X_j)|^2
+//        + w / |B| sum_{b in boundary nodes} |x_b - nearest outline point|^2
+//        + w / |S| sum_{s in outline samples} |nearest mesh-outline point - s|^2
+//
+// X the frame-0 mesh, R_t each triangle's best rotation (the local step,
+// closed form in 2D), the clamped nodes held where frame 0 has them. Both
+// outline terms are needed: the first puts every boundary node on the
+// outline, the second makes the mesh reach every part of it (a tip the
+// nodes fell short of). The global step is one sparse symmetric solve for x
+// and y together. Each frame starts from the previous frame's shape moved
+// on by its velocity, so a swing of ~10 px a frame stays within reach of
+// the nearest-point matches.
+
+#include "calib/core/mesh.h"
+#include "calib/core/types.h"
+#include "calib/evaluator/bit_mask.h"
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace calib {
+
+struct ShapeTrackingOptions {
+  /// Weight w of the outline terms against the rigidity term (whose edges
+  /// each weigh 1 per px^2), scaled by the number of mesh edges so that it
+  /// does not depend on the mesh's resolution.
+  double outline_weight = 4.0;
+  /// Local/global alternations per frame at most.
+  int max_iterations = 40;
+  /// A frame's registration has converged when no node moved more than
+  /// this in one alternation, px.
+  double tolerance_px = 0.01;
+  /// Spacing of the outline samples, px.
+  double sample_spacing_px = 1.0;
+};
+
+/// The mesh's node positions in frames [0, count) of `masks`.
+struct TrackedShapes {
+  std::vector<std::vector<Vec2>> positions;  ///< [frame][node], px; frame 0 = the mesh
+  /// Mean distance of the boundary nodes to the frame's outline, px (0 for
+  /// frame 0; -1 for a frame without object pixels, whose shape is the
+  /// previous one moved on).
+  std::vector<double> outline_distance_px;
+};
+
+/// Tracks `mesh` (frame 0's) through the first `count` frames of `masks`
+/// (count <= masks.size()); nodes with clamped[i] != 0 stay put. Throws
+/// std::invalid_argument for options out of range or `clamped` of the wrong
+/// size.
+TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
+                        std::span<const BitMask> masks, int count,
+                        const ShapeTrackingOptions& options = {});
+
+/// The start of a free motion, per node, from tracked shapes.
+struct NodeMotion {
+  /// The shape the object moves about: the shape whose edge lengths are
+  /// nearest (least squares) the tracked edges' mean lengths over the
+  /// window, found from the mean of the tracked positions. A swing's
+  /// stretch and squeeze cancel in the mean lengths to first order; a mean
+  /// of positions would also shrink every part that turns back and forth
+  /// (the mean of a turning vector is shorter than the vector).
+  std::vector<Vec2> rest_shape_px;
+  /// Each node's velocity at frame 0: slope at 0 of the least-squares
+  /// quadratic through its first `velocity_frames` tracked positions.
+  std::vector<Vec2> velocity_px_s;
+};
+
+/// Estimates NodeMotion from `shapes` of `mesh` (frames 0..) at `fps`: the
+/// rest shape from frames [0, mean_frames), clamped nodes where they are;
+/// the velocity from the first `velocity_frames` (>= 2; a line through
+/// two). Throws std::invalid_argument when the shapes have fewer frames than
+/// either needs or do not fit the mesh.
+NodeMotion EstimateNodeMotion(const Mesh& mesh, std::span<const uint8_t> clamped,
+                              const TrackedShapes& shapes, double fps, int mean_frames,
+                              int velocity_frames = 5);
+
+}  // namespace calib

@@ -1,0 +1,167 @@
+// Tracking the mesh through the video (shape_tracking.h): a strip moved
+// rigidly is followed node by node; the start of a free motion is the
+// velocity of the tracked nodes and a rest shape that a swing does not
+// shrink; bad arguments are named.
+
+#include "calib/evaluator/shape_tracking.h"
+
+#include "calib/evaluator/bit_mask_cv.h"
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace calib {
+namespace {
+
+using calib::testing::MakeGridMesh;
+
+constexpr int kWidth = 220, kHeight = 200;
+
+// A 30 x 120 px strip with its top edge centred on (100, 40).
+Mesh Strip() { return MakeGridMesh(3, 12, 10.0, Vec2(85, 40)); }
+
+Vec2 Rotated(const Vec2& p, const Vec2& pivot, double angle) {
+  const Vec2 d = p - pivot;
+  return pivot + Vec2(std::cos(angle) * d.x() - std::sin(angle) * d.y(),
+                      std::sin(angle) * d.x() + std::cos(angle) * d.y());
+}
+
+// The pixels of the polygon `corners` (frame pixel (x, y) covers
+// [x, x + 1) x [y, y + 1)), drawn with sub-pixel precision.
+BitMask PolygonMask(const std::vector<Vec2>& corners) {
+  constexpr int kShift = 8;
+  std::vector<cv::Point> points;
+  for (const Vec2& c : corners) {
+    points.emplace_back(static_cast<int>(std::lround((c.x() - 0.5) * (1 << kShift))),
+                        static_cast<int>(std::lround((c.y() - 0.5) * (1 << kShift))));
+  }
+  cv::Mat image = cv::Mat::zeros(kHeight, kWidth, CV_8UC1);
+  cv::fillPoly(image, std::vector<std::vector<cv::Point>>{points}, cv::Scalar(255), cv::LINE_8, kShift);
+  return FromMat(image, 0, 0);
+}
+
+TEST(ShapeTracking, FollowsAStripMovedRigidlyNodeByNode) {
+  const Mesh mesh = Strip();
+  const Vec2 pivot(100, 40);
+  const std::vector<Vec2> corners{{85, 40}, {115, 40}, {115, 160}, {85, 160}};
+  // Swinging 0.3 rad either way about its top, drifting right.
+  const auto angle = [](int f) { return 0.3 * std::sin(2.0 * M_PI * f / 40.0); };
+  const auto place = [&](const Vec2& p, int f) -> Vec2 {
+    return Rotated(p, pivot, angle(f)) + Vec2(0.4 * f, 0.0);
+  };
+  constexpr int kFrames = 40;
+  std::vector<BitMask> masks;
+  for (int f = 0; f < kFrames; ++f) {
+    std::vector<Vec2> moved;
+    for (const Vec2& c : corners) moved.push_back(place(c, f));
+    masks.push_back(PolygonMask(moved));
+  }
+  const std::vector<uint8_t> none(mesh.NumNodes(), 0);
+  const TrackedShapes tracked = TrackMesh(mesh, none, masks, kFrames);
+  ASSERT_EQ(tracked.positions.size(), static_cast<size_t>(kFrames));
+  double worst = 0.0, sum = 0.0;
+  int count = 0;
+  for (int f = 0; f < kFrames; ++f) {
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      const double error = (tracked.positions[f][i] - place(mesh.rest_positions[i], f)).norm();
+      worst = std::max(worst, error);
+      sum += error;
+      ++count;
+    }
+    EXPECT_LT(tracked.outline_distance_px[f], 0.5) << "frame " << f;
+  }
+  // Pixel outlines: within a pixel everywhere, a fraction of one on average.
+  EXPECT_LT(worst, 1.5);
+  EXPECT_LT(sum / count, 0.5);
+}
+
+TEST(ShapeTracking, TheVelocityIsTheSlopeAtFrameZeroOfEachNodesTrack) {
+  const Mesh mesh = Strip();
+  const double fps = 240.0;
+  TrackedShapes shapes;
+  // Node i moves by u_i f + a f^2 / 2 per frame f: a quadratic fit is exact.
+  for (int f = 0; f < 6; ++f) {
+    std::vector<Vec2> x = mesh.rest_positions;
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      const Vec2 u(0.01 * i, -0.02 * i), a(0.003, 0.001 * (i % 3));
+      x[i] += u * f + 0.5 * a * f * f;
+    }
+    shapes.positions.push_back(x);
+    shapes.outline_distance_px.push_back(0.0);
+  }
+  const std::vector<uint8_t> none(mesh.NumNodes(), 0);
+  const NodeMotion motion = EstimateNodeMotion(mesh, none, shapes, fps, 6, 5);
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    EXPECT_NEAR(motion.velocity_px_s[i].x(), 0.01 * i * fps, 1e-9 * fps) << "node " << i;
+    EXPECT_NEAR(motion.velocity_px_s[i].y(), -0.02 * i * fps, 1e-9 * fps) << "node " << i;
+  }
+}
+
+TEST(ShapeTracking, ASwingDoesNotShrinkTheRestShape) {
+  // The strip swings rigidly +-0.35 rad about its clamped top-middle node.
+  // The mean of its positions is shorter than the strip (by 1 - cos 0.35,
+  // 7 px at the foot); the rest shape has the strip's own lengths, hanging.
+  const Mesh mesh = Strip();
+  const int top_middle = 1;  // (95, 40) on the top row
+  const Vec2 pivot = mesh.rest_positions[top_middle];
+  std::vector<uint8_t> clamped(mesh.NumNodes(), 0);
+  clamped[top_middle] = 1;
+  TrackedShapes shapes;
+  for (int f = 0; f < 8; ++f) {
+    std::vector<Vec2> x;
+    for (const Vec2& p : mesh.rest_positions) x.push_back(Rotated(p, pivot, f % 2 == 0 ? 0.35 : -0.35));
+    shapes.positions.push_back(x);
+    shapes.outline_distance_px.push_back(0.0);
+  }
+  const NodeMotion motion = EstimateNodeMotion(mesh, clamped, shapes, 240.0, 8, 2);
+  double worst = 0.0, worst_mean = 0.0;
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    worst = std::max(worst, (motion.rest_shape_px[i] - mesh.rest_positions[i]).norm());
+    Vec2 mean = Vec2::Zero();
+    for (const auto& x : shapes.positions) mean += x[i] / 8.0;
+    worst_mean = std::max(worst_mean, (mean - mesh.rest_positions[i]).norm());
+  }
+  EXPECT_GT(worst_mean, 5.0) << "the mean of positions shrinks the strip";
+  EXPECT_LT(worst, 0.01);
+}
+
+TEST(ShapeTracking, BadArgumentsAreNamed) {
+  const Mesh mesh = Strip();
+  const std::vector<BitMask> masks(3, BitMask(kWidth, kHeight));
+  const std::vector<uint8_t> none(mesh.NumNodes(), 0);
+  const auto message = [](const auto& call) {
+    try {
+      call();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(message([&] { TrackMesh(mesh, none, masks, 4); }).find("4 frames asked of a recording of 3"),
+            std::string::npos);
+  EXPECT_NE(message([&] { TrackMesh(mesh, std::vector<uint8_t>(2, 0), masks, 2); })
+                .find("2 clamp flags for a mesh of"),
+            std::string::npos);
+  ShapeTrackingOptions options;
+  options.outline_weight = 0.0;
+  EXPECT_NE(message([&] { TrackMesh(mesh, none, masks, 2, options); }).find("outline_weight"),
+            std::string::npos);
+  TrackedShapes one;
+  one.positions.push_back(mesh.rest_positions);
+  one.outline_distance_px.push_back(0.0);
+  EXPECT_NE(message([&] { EstimateNodeMotion(mesh, none, one, 240.0, 1, 5); })
+                .find("a velocity from 5 frames asked of 1 tracked frames"),
+            std::string::npos);
+  EXPECT_NE(message([&] { EstimateNodeMotion(mesh, none, one, 240.0, 3, 1); })
+                .find("a mean over 3 frames asked of 1 tracked frames"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace calib
