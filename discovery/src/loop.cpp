@@ -2,12 +2,15 @@
 
 #include "calib/discovery/loop.h"
 
+#include "calib/jobs/fit_diagnostics.h"
+
 #include "calib/core/model_definition.h"
 #include "calib/discovery/confusions.h"
 #include "calib/discovery/paired_test.h"
 #include "calib/discovery/report_html.h"
 #include "calib/discovery/report_overlays.h"
 #include "calib/jobs/batch_evaluator.h"
+#include "calib/jobs/fit_diagnostics.h"
 #include "calib/results/store.h"
 #include "loop_stages.h"
 
@@ -122,6 +125,8 @@ class Loop {
   }
   void Prepare();
   ReportStage MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const;
+  // Logs what the calibration's history says about the fit, if anything.
+  void LogFitDiagnostics(const Fit& fit) const;
   void AddResiduals(const Fit& fit);
   void AddOverlays(const Fit& fit, const std::string& stage);
   // The confusable pairs this round met (confusions.h), judged after its
@@ -192,6 +197,15 @@ void Loop::Prepare() {
   }
 }
 
+void Loop::LogFitDiagnostics(const Fit& fit) const {
+  FitDiagnostics d;
+  d.uninformative = fit.uninformative;
+  d.at_bounds = fit.at_bounds;
+  d.scored = fit.evaluations;
+  const std::string summary = d.Summary();
+  if (!summary.empty()) Log(fmt::format("{}: {}", StageName(fit.effects), summary));
+}
+
 ReportStage Loop::MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const {
   ReportStage s;
   s.name = StageName(fit.effects);
@@ -208,6 +222,8 @@ ReportStage Loop::MakeStage(const Fit& fit, const std::string& tried, StageDecis
   s.holdout_sensitivity_px = fit.holdout_sensitivity_px;
   s.holdout_sensitivity_parameter = fit.holdout_sensitivity_parameter;
   if (fit.restart_training_xor.size() > 1) s.restart_training_xor = fit.restart_training_xor;
+  s.uninformative = fit.uninformative;
+  s.at_bounds = fit.at_bounds;
   return s;
 }
 
@@ -324,13 +340,17 @@ LoopResult Loop::Run() {
                   o_.restarts > 1 ? fmt::format(" in each of {} independent searches", o_.restarts) : "",
                   threads_));
   Fit current = calibrator_->Calibrate(index++, {}, nullptr);
+  LogFitDiagnostics(current);
   calibrator_->MeasureEquallyGood(&current);
   calibrator_->MeasureSensitivity(&current);
   const Fit base = current;
   report_.stages.push_back(MakeStage(base, "", StageDecision::kBase));
   report_.stages.back().criterion = "held-out XOR sum";
   report_.stages.back().criterion_value = base.XorSum(recs_, false);
-  report_.stages.back().reason = "the paper's base model";
+  report_.stages.back().reason =
+      base.uninformative ? "the paper's base model; uninformative: its score does not depend on "
+                           "its parameters (nothing moves the mesh)"
+                         : "the paper's base model";
   AddResiduals(base);
   Log(fmt::format("base: training XOR {:.0f}, held-out XOR {:.0f} ({:.1f} s){}{}{}",
                   base.XorSum(recs_, true), base.XorSum(recs_, false), base.seconds,
@@ -382,6 +402,7 @@ LoopResult Loop::Run() {
               : fmt::format("round {}: calibrating {} (warm start from {})", round,
                             StageName(effects), StageName(current.effects)));
       Fit fit = calibrator_->Calibrate(index, effects, &current);
+      LogFitDiagnostics(fit);
       calibrator_->MeasureEquallyGood(&fit);
       // The reference: the previous model, or the previous model with the
       // candidate's values (the effect switched off) where that is better

@@ -151,6 +151,8 @@ json ToJson(const ReportStage& s) {
     for (double x : s.restart_training_xor) restarts.push_back(JsonNumber(x));
     j["restart_training_xor"] = restarts;
   }
+  if (s.uninformative) j["uninformative"] = true;
+  if (!s.at_bounds.empty()) j["at_bounds"] = s.at_bounds;
   return j;
 }
 
@@ -219,6 +221,14 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
         Bad(fmt::format("{}[{}]", in.Path("restart_training_xor"), i), "expected a number");
       }
       s.restart_training_xor.push_back(restarts[i].is_null() ? NAN : restarts[i].get<double>());
+    }
+  }
+  if (j.contains("uninformative")) s.uninformative = in.Bool("uninformative");  // optional
+  if (j.contains("at_bounds")) {  // optional
+    const json& bounds = in.Array("at_bounds");
+    for (size_t i = 0; i < bounds.size(); ++i) {
+      if (!bounds[i].is_string()) Bad(fmt::format("{}[{}]", in.Path("at_bounds"), i), "expected a string");
+      s.at_bounds.push_back(bounds[i].get<std::string>());
     }
   }
   return s;

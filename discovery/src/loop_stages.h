@@ -48,6 +48,11 @@ struct Fit {
   double seconds = 0.0;
   std::vector<int64_t> jobs;  ///< the store's jobs of its calibration
   std::vector<double> restart_training_xor;  ///< from scratch: each search's best
+  /// Every job of the calibration scored all its candidates the same
+  /// (FitDiagnostics::uninformative), and the searched parameters the fit
+  /// left on a bound of the stage's box.
+  bool uninformative = false;
+  std::vector<std::string> at_bounds;
   EquallyGoodFits equally_good;  ///< MeasureEquallyGood; fits == 0 until then
   /// MeasureSensitivity: the largest move of the held-out XOR sum when one
   /// value moves by 0.1 % (px; 0 until measured), and that value's name.

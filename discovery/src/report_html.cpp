@@ -160,6 +160,14 @@ std::string Params(const ParameterValues& values) {
   return s;
 }
 
+// The fitted values on a bound of the search box, for the parameters cell.
+std::string AtBoundsText(const std::vector<std::string>& at_bounds) {
+  if (at_bounds.empty()) return "";
+  std::string s = "<br>on the box's bound: ";
+  for (size_t i = 0; i < at_bounds.size(); ++i) s += (i == 0 ? "" : ", ") + Escape(at_bounds[i]);
+  return s;
+}
+
 // The held-out spread of a model's equally good fits, for its reason cell.
 // The keep rule's test of a tried stage, e.g. "<br>p = 0.0004, significant
 // over 3 hypotheses".
@@ -245,7 +253,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
       << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << TestText(s.test)
       << "</td><td>" << Escape(s.reason) << EquallyGoodText(s.equally_good)
       << RestartsText(s.restart_training_xor) << "</td><td>" << Params(s.parameters)
-      << "</td><td class=\"n\">"
+      << (s.uninformative ? "<br><b>uninformative</b>: the score does not depend on them" : "")
+      << AtBoundsText(s.at_bounds) << "</td><td class=\"n\">"
       << s.evaluations << "</td><td class=\"n\">" << Num(s.calibration_time_s, 1)
       << "</td></tr>\n";
   }

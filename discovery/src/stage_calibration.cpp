@@ -9,6 +9,7 @@
 #include "calib/discovery/signals.h"
 #include "calib/evaluator/mask_geometry.h"
 #include "calib/jobs/batch_evaluator.h"
+#include "calib/jobs/fit_diagnostics.h"
 #include "calib/jobs/job_spec.h"
 #include "calib/jobs/runner.h"
 #include "calib/search/factory.h"
@@ -455,6 +456,18 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
     }
     if (score0 < best || !std::isfinite(best)) fit.values = start_values;
   }
+  // What the calibration's history says about the fit: a score no
+  // parameter moved in any of its jobs, values on the box's bounds.
+  bool every_job_flat = !fit.jobs.empty();
+  int64_t scored = 0;
+  for (int64_t job : fit.jobs) {
+    const std::vector<EvaluationRecord> evaluations = store_.Evaluations(job);
+    const FitDiagnostics d = DiagnoseFit(settings, {}, evaluations);
+    scored += d.scored;
+    every_job_flat = every_job_flat && (d.uninformative || d.scored == 0);
+  }
+  fit.uninformative = every_job_flat && scored >= 2;
+  fit.at_bounds = DiagnoseFit(settings, fit.values, {}).at_bounds;
   Measure(&fit);
   fit.seconds = Since(start);
   return fit;

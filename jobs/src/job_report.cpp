@@ -1,6 +1,7 @@
 #include "calib/jobs/job_report.h"
 
 #include "calib/evaluator/recording.h"
+#include "calib/jobs/fit_diagnostics.h"
 #include "calib/results/convergence_plot.h"
 
 #include <fmt/format.h>
@@ -25,6 +26,7 @@ double NowUnixSeconds() {
 std::string JobReport::Report() const {
   std::string text;
   if (!best_params.empty()) text += fmt::format("best parameters: {}\n", best_params.string());
+  if (!diagnostics.empty()) text += fmt::format("fit: {}\n", diagnostics);
   for (const RecordingReport& r : recordings) {
     text += fmt::format("{} {}: score {:.1f}, mean IoU {:.4f}{}\n", r.role,
                         RecordingDisplayName(r.recording), r.result.xor_sum, r.result.mean_iou,
@@ -105,6 +107,8 @@ JobReport WriteJobReport(const JobSpec& spec, ResultStore& store, int64_t job,
   if (has_best) {
     report.best_params = report.out_dir / "best_params.json";
     store.WriteBestParameterFile(job, report.best_params);
+    const std::vector<EvaluationRecord> evaluations = store.Evaluations(job);
+    report.diagnostics = DiagnoseFit(spec.parameters, store.Best(job)->parameters, evaluations).Summary();
   }
 
   nlohmann::json result = {{"recordings", nlohmann::json::array()}};

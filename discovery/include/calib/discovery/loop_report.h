@@ -97,6 +97,13 @@ struct ReportStage {
   /// independent searches: the best training XOR sum each reached, in
   /// order (the first from the box's centre). Empty for warm-started stages.
   std::vector<double> restart_training_xor;
+  /// Every successful candidate of the calibration scored the same: the
+  /// score does not depend on the parameters (nothing moves the mesh), so
+  /// the stage is no fit of them (FitDiagnostics).
+  bool uninformative = false;
+  /// Searched parameters the fit left on a bound of its box, e.g.
+  /// "k_phi = 1e+06 (upper bound)".
+  std::vector<std::string> at_bounds;
   /// With held-out recordings, for the base and the final model: the
   /// largest move of the held-out XOR sum when one value of the stage's fit
   /// moves by 0.1 %, and that value; 0: not measured.

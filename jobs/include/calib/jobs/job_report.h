@@ -38,6 +38,9 @@ struct JobReport {
   std::filesystem::path summary_txt;
   std::filesystem::path convergence_svg;  ///< empty when not written
   std::vector<RecordingReport> recordings;
+  /// What the history says about the fit (FitDiagnostics::Summary: an
+  /// uninformative score, parameters on their box's bounds); empty: nothing.
+  std::string diagnostics;
 
   /// Lines naming every file and each recording's score and mean IoU.
   std::string Report() const;

@@ -1,0 +1,58 @@
+#include "calib/jobs/fit_diagnostics.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace calib {
+
+std::string FitDiagnostics::Summary() const {
+  std::string out;
+  if (uninformative) {
+    out = fmt::format(
+        "uninformative: all {} successful evaluations scored the same (the score does not depend "
+        "on the parameters: nothing moves the mesh), so the fit says nothing about them",
+        scored);
+  }
+  if (!at_bounds.empty()) {
+    std::string list;
+    for (const std::string& b : at_bounds) list += (list.empty() ? "" : ", ") + b;
+    out += fmt::format("{}on the search box's bound: {}", out.empty() ? "" : "; ", list);
+  }
+  return out;
+}
+
+FitDiagnostics DiagnoseFit(const std::vector<ParameterSetting>& settings,
+                           const ParameterValues& best,
+                           std::span<const EvaluationRecord> evaluations) {
+  FitDiagnostics d;
+  if (!best.empty()) {
+    const SearchSpace space(settings);
+    const std::vector<std::string> names = space.names();
+    const std::vector<double> unit = space.ToUnit(best);
+    for (size_t k = 0; k < names.size(); ++k) {
+      const double value = best.at(names[k]);
+      if (unit[k] <= FitDiagnostics::kBoundShare) {
+        d.at_bounds.push_back(fmt::format("{} = {:g} (lower bound)", names[k], value));
+      } else if (unit[k] >= 1.0 - FitDiagnostics::kBoundShare) {
+        d.at_bounds.push_back(fmt::format("{} = {:g} (upper bound)", names[k], value));
+      }
+    }
+  }
+  double lowest = std::numeric_limits<double>::infinity();
+  double highest = -lowest;
+  for (const EvaluationRecord& e : evaluations) {
+    if (!e.ok || !std::isfinite(e.score)) continue;
+    ++d.scored;
+    lowest = std::min(lowest, e.score);
+    highest = std::max(highest, e.score);
+  }
+  if (d.scored > 0) d.score_spread = highest - lowest;
+  d.uninformative =
+      d.scored >= 2 && d.score_spread <= FitDiagnostics::kFlatRelative * std::max(1.0, std::abs(lowest));
+  return d;
+}
+
+}  // namespace calib
