@@ -9,6 +9,7 @@
 #include "calib/discovery/paired_test.h"
 #include "calib/discovery/report_html.h"
 #include "calib/discovery/report_overlays.h"
+#include "calib/evaluator/mask_geometry.h"
 #include "calib/jobs/batch_evaluator.h"
 #include "calib/jobs/fit_diagnostics.h"
 #include "calib/results/store.h"
@@ -159,6 +160,9 @@ void Loop::Prepare() {
     for (int k = 2; names.count(r.name) != 0; ++k) r.name = fmt::format("{}_{}", name, k);
     names.insert(r.name);
     r.noise_px = SegmentationNoisePx(r.prepared->object_masks);
+    if (const std::optional<Vec2> clamp = ClampCentre(r.prepared->scene)) {
+      for (const BitMask& mask : r.prepared->object_masks) r.video_tips.push_back(FarthestPixelFrom(mask, *clamp));
+    }
     r.residual_facts = std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(*r.prepared));
     recs_.push_back(std::move(r));
   };
@@ -192,8 +196,13 @@ void Loop::Prepare() {
   }
   scales_ = TrainingScales(training, o_.simulation);
   for (const LoopRecording& r : recs_) {
-    report_.recordings.push_back({r.name, r.path.string(), r.train ? "train" : "holdout",
-                                  r.prepared->scene.num_frames, r.prepared->recording.fps});
+    ReportRecording rec{r.name, r.path.string(), r.train ? "train" : "holdout",
+                        r.prepared->scene.num_frames, r.prepared->recording.fps, {}, {}};
+    for (const Vec2& t : r.video_tips) {
+      rec.tip_x_px.push_back(t.x());
+      rec.tip_y_px.push_back(t.y());
+    }
+    report_.recordings.push_back(std::move(rec));
   }
 }
 
@@ -214,7 +223,15 @@ ReportStage Loop::MakeStage(const Fit& fit, const std::string& tried, StageDecis
   s.effects = fit.effects;
   s.parameters = fit.values;
   for (size_t r = 0; r < recs_.size(); ++r) {
-    s.errors.push_back(RecordingScore::FromEvaluation(recs_[r].name, fit.results[r]));
+    RecordingScore e = RecordingScore::FromEvaluation(recs_[r].name, fit.results[r]);
+    if (r < fit.tips.size() && !fit.tips[r].empty() && !recs_[r].video_tips.empty()) {
+      for (const Vec2& t : fit.tips[r]) {
+        e.tip_x_px.push_back(t.x());
+        e.tip_y_px.push_back(t.y());
+      }
+      e.median_tip_distance_px = MedianTipDistance(fit.tips[r], recs_[r].video_tips);
+    }
+    s.errors.push_back(std::move(e));
   }
   s.calibration_time_s = fit.seconds;
   s.evaluations = fit.evaluations;

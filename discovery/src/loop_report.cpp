@@ -82,11 +82,33 @@ class In {
   std::string path_;
 };
 
+json Numbers(const std::vector<double>& values) {
+  json out = json::array();
+  for (double v : values) out.push_back(JsonNumber(v));
+  return out;
+}
+
+// An optional array of numbers (null for NaN) at key `key` of `in`'s object.
+std::vector<double> OptionalNumbers(const In& in, const json& j, const std::string& key) {
+  std::vector<double> out;
+  if (!j.contains(key)) return out;
+  for (const json& v : in.Array(key.c_str())) {
+    if (!v.is_number() && !v.is_null()) Bad(in.Path(key), "expected numbers");
+    out.push_back(v.is_null() ? NAN : v.get<double>());
+  }
+  return out;
+}
+
 json ToJson(const RecordingScore& e) {
-  json iou = json::array();
-  for (double v : e.frame_iou) iou.push_back(JsonNumber(v));
-  return {{"recording", e.recording}, {"status", e.status},   {"xor_sum", e.xor_sum},
-          {"mean_iou", JsonNumber(e.mean_iou)}, {"frame_xor", e.frame_xor}, {"frame_iou", iou}};
+  json j = {{"recording", e.recording}, {"status", e.status},   {"xor_sum", e.xor_sum},
+            {"mean_iou", JsonNumber(e.mean_iou)}, {"frame_xor", e.frame_xor},
+            {"frame_iou", Numbers(e.frame_iou)}};
+  if (!e.tip_x_px.empty()) {
+    j["tip_x_px"] = Numbers(e.tip_x_px);
+    j["tip_y_px"] = Numbers(e.tip_y_px);
+    j["median_tip_distance_px"] = JsonNumber(e.median_tip_distance_px);
+  }
+  return j;
 }
 
 RecordingScore ErrorFromJson(const json& j, const std::string& path) {
@@ -102,6 +124,13 @@ RecordingScore ErrorFromJson(const json& j, const std::string& path) {
   }
   for (const json& v : in.Array("frame_iou")) {
     e.frame_iou.push_back(v.is_null() ? NAN : v.get<double>());
+  }
+  // Optional: objects held by clamps only.
+  e.tip_x_px = OptionalNumbers(in, j, "tip_x_px");
+  e.tip_y_px = OptionalNumbers(in, j, "tip_y_px");
+  if (e.tip_x_px.size() != e.tip_y_px.size()) Bad(in.Path("tip_y_px"), "expected as many as tip_x_px");
+  if (j.contains("median_tip_distance_px") && !j["median_tip_distance_px"].is_null()) {
+    e.median_tip_distance_px = in.Num("median_tip_distance_px");
   }
   return e;
 }
@@ -292,11 +321,16 @@ nlohmann::json ToJson(const LoopReport& r) {
   j["run_time_s"] = JsonNumber(r.run_time_s);
   json recordings = json::array();
   for (const ReportRecording& rec : r.recordings) {
-    recordings.push_back({{"name", rec.name},
-                          {"path", rec.path},
-                          {"role", rec.role},
-                          {"num_frames", rec.num_frames},
-                          {"fps", JsonNumber(rec.fps)}});
+    json entry = {{"name", rec.name},
+                  {"path", rec.path},
+                  {"role", rec.role},
+                  {"num_frames", rec.num_frames},
+                  {"fps", JsonNumber(rec.fps)}};
+    if (!rec.tip_x_px.empty()) {
+      entry["tip_x_px"] = Numbers(rec.tip_x_px);
+      entry["tip_y_px"] = Numbers(rec.tip_y_px);
+    }
+    recordings.push_back(std::move(entry));
   }
   j["recordings"] = recordings;
   json stages = json::array();
@@ -379,7 +413,9 @@ LoopReport LoopReportFromJson(const nlohmann::json& doc) {
   for (size_t i = 0; i < recordings.size(); ++i) {
     const In rec(recordings[i], fmt::format("recordings[{}]", i));
     r.recordings.push_back({rec.Text("name"), rec.Text("path"), rec.Text("role"),
-                            static_cast<int>(rec.Int("num_frames")), rec.Num("fps")});
+                            static_cast<int>(rec.Int("num_frames")), rec.Num("fps"),
+                            OptionalNumbers(rec, recordings[i], "tip_x_px"),
+                            OptionalNumbers(rec, recordings[i], "tip_y_px")});
   }
   const json& stages = in.Array("stages");
   for (size_t i = 0; i < stages.size(); ++i) {

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,7 +37,11 @@ struct LoopRecording {
   /// held-out recording; the split for a held-out stretch of a training
   /// video (its first frames are the training recording).
   int first_compared_frame = 0;
+  /// An object held by clamps: its tip per frame (the object's pixel
+  /// farthest from the clamps' centre, FarthestPixelFrom); empty otherwise.
+  std::vector<Vec2> video_tips;
 };
+
 
 // One calibrated model and how it does everywhere.
 struct Fit {
@@ -48,6 +53,9 @@ struct Fit {
   double seconds = 0.0;
   std::vector<int64_t> jobs;  ///< the store's jobs of its calibration
   std::vector<double> restart_training_xor;  ///< from scratch: each search's best
+  /// Measure: per recording with clamps, the model's tip per frame
+  /// simulated (the node farthest from the clamps' centre); empty otherwise.
+  std::vector<std::vector<Vec2>> tips;
   /// Every job of the calibration scored all its candidates the same
   /// (FitDiagnostics::uninformative), and the searched parameters the fit
   /// left on a bound of the stage's box.

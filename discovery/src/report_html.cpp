@@ -54,32 +54,72 @@ std::string Percent(double before, double after) {
   return fmt::format("{:+.1f}%", 100.0 * (after - before) / before);
 }
 
-// Per-frame XOR of base and final model on one recording.
-std::string ErrorPlotScript(const ReportRecording& rec, const RecordingScore* before,
-                            const RecordingScore* after) {
+// A per-frame series (XOR or IoU) of base and final model on one recording.
+std::string FramePlotScript(const ReportRecording& rec, const RecordingScore* before,
+                            const RecordingScore* after,
+                            std::vector<double> RecordingScore::*series, const std::string& what,
+                            const std::string& ylabel, const std::string& yrange) {
   auto rows = [&](const RecordingScore* e) {
     std::vector<std::vector<double>> out;
     const double fps = rec.fps > 0 ? rec.fps : 1.0;
-    for (size_t f = 0; f < e->frame_xor.size(); ++f) {
-      out.push_back({static_cast<double>(f) / fps, static_cast<double>(e->frame_xor[f])});
+    const std::vector<double>& values = e->*series;
+    for (size_t f = 0; f < values.size(); ++f) {
+      out.push_back({static_cast<double>(f) / fps, values[f]});
     }
     return out;
   };
   std::string script;
   std::vector<std::string> plots;
-  if (before != nullptr && !before->frame_xor.empty()) {
+  if (before != nullptr && !(before->*series).empty()) {
     script += Datablock("before", rows(before));
     plots.push_back("$before using 1:2 with lines lw 1.5 lc rgb '#c0392b' title 'before (base model)'");
   }
-  if (after != nullptr && after != before && !after->frame_xor.empty()) {
+  if (after != nullptr && after != before && !(after->*series).empty()) {
     script += Datablock("after", rows(after));
     plots.push_back("$after using 1:2 with lines lw 1.5 lc rgb '#2471a3' title 'after (final model)'");
   }
   if (plots.empty()) return "";
   script += fmt::format(
-      "set title {}\nset xlabel 'time (s)'\nset ylabel 'XOR (px per frame)'\nset grid\n"
-      "set key top left\nset yrange [0:*]\nplot {}\n",
-      GnuplotQuote(rec.name + " (" + rec.role + "): per-frame error"),
+      "set title {}\nset xlabel 'time (s)'\nset ylabel {}\nset grid\n"
+      "set key top left\nset yrange {}\nplot {}\n",
+      GnuplotQuote(rec.name + " (" + rec.role + "): " + what), GnuplotQuote(ylabel), yrange,
+      fmt::join(plots, ", \\\n  "));
+  return script;
+}
+
+// The tip's horizontal position over time: the video's and the base and
+// final models' (objects held by clamps; the model tips of a failed
+// simulation stop at its failure).
+std::string TipPlotScript(const ReportRecording& rec, const RecordingScore* before,
+                          const RecordingScore* after) {
+  if (rec.tip_x_px.empty()) return "";
+  const double fps = rec.fps > 0 ? rec.fps : 1.0;
+  auto rows = [&](const std::vector<double>& x) {
+    std::vector<std::vector<double>> out;
+    for (size_t f = 0; f < x.size(); ++f) out.push_back({static_cast<double>(f) / fps, x[f]});
+    return out;
+  };
+  std::string script = Datablock("video", rows(rec.tip_x_px));
+  std::vector<std::string> plots{"$video using 1:2 with lines lw 2 lc rgb '#333333' title 'video'"};
+  const auto add = [&](const RecordingScore* e, const char* name, const char* colour,
+                       const std::string& title) {
+    if (e == nullptr || e->tip_x_px.empty()) return;
+    script += Datablock(name, rows(e->tip_x_px));
+    plots.push_back(fmt::format("${} using 1:2 with lines lw 1.2 lc rgb '{}' title {}", name, colour,
+                                GnuplotQuote(title)));
+  };
+  add(before, "before", "#c0392b",
+      before != nullptr ? fmt::format("base model (median tip distance {:.1f} px)", before->median_tip_distance_px)
+                        : "");
+  if (after != before) {
+    add(after, "after", "#2471a3",
+        after != nullptr ? fmt::format("final model (median tip distance {:.1f} px)", after->median_tip_distance_px)
+                         : "");
+  }
+  script += fmt::format(
+      "set title {}\nset xlabel 'time (s)'\nset ylabel 'tip x (px)'\nset grid\n"
+      "set key top right\nplot {}\n",
+      GnuplotQuote(rec.name + " (" + rec.role + "): the tip (farthest from the clamp), across the image"),
       fmt::join(plots, ", \\\n  "));
   return script;
 }
@@ -296,9 +336,21 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     h << "<h2>" << Escape(rec.name) << " (" << Escape(rec.role) << ")</h2>\n";
     const RecordingScore* b = base != nullptr ? base->ErrorOn(rec.name) : nullptr;
     const RecordingScore* a = fin != nullptr ? fin->ErrorOn(rec.name) : nullptr;
-    const std::string error_script = ErrorPlotScript(rec, b, a);
+    const std::string error_script = FramePlotScript(rec, b, a, &RecordingScore::frame_xor,
+                                                     "per-frame error", "XOR (px per frame)", "[0:*]");
     if (!error_script.empty()) {
       h << plot.Figure(error_script, "XOR pixel area per frame: base model and final model");
+    }
+    const std::string iou_script = FramePlotScript(rec, b, a, &RecordingScore::frame_iou,
+                                                   "per-frame IoU", "IoU", "[0:1]");
+    if (!iou_script.empty()) {
+      h << plot.Figure(iou_script, "Intersection over union per frame: base model and final model");
+    }
+    const std::string tip_script = TipPlotScript(rec, b, a);
+    if (!tip_script.empty()) {
+      h << plot.Figure(tip_script,
+                       "The tip across the image over time: the video's (its pixel farthest "
+                       "from the clamp) and the models' (their node farthest from it)");
     }
     for (const ReportResidual& r : report.residuals) {
       if (r.recording != rec.name) continue;

@@ -162,6 +162,28 @@ CalibrationRequest StageRequest(const std::string& name, const std::vector<Param
 // =========================================================================
 // Stage calibrations (loop_stages.h).
 
+std::optional<Vec2> ClampCentre(const Scene& scene) {
+  if (scene.clamps.empty()) return std::nullopt;
+  Vec2 sum = Vec2::Zero();
+  for (const RectPx& c : scene.clamps) sum += Vec2(c.x + 0.5 * c.width, c.y + 0.5 * c.height);
+  return Vec2(sum / static_cast<double>(scene.clamps.size()));
+}
+
+double MedianTipDistance(const std::vector<Vec2>& model, const std::vector<Vec2>& video) {
+  std::vector<double> d;
+  const size_t n = std::min(model.size(), video.size());
+  for (size_t f = 0; f < n; ++f) {
+    const double distance = (model[f] - video[f]).norm();
+    if (std::isfinite(distance)) d.push_back(distance);
+  }
+  if (d.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const size_t mid = d.size() / 2;
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid), d.end());
+  if (d.size() % 2 == 1) return d[mid];
+  const double upper = d[mid];
+  return 0.5 * (*std::max_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(mid)) + upper);
+}
+
 namespace loop_detail {
 namespace {
 
@@ -477,6 +499,7 @@ void StageCalibrator::Measure(Fit* fit) const {
   const int n = static_cast<int>(recs_.size());
   fit->results.assign(n, {});
   fit->residuals.assign(n, {});
+  fit->tips.assign(n, {});
   const ModelDefinition model{fit->effects};
   std::vector<std::string> errors(n);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, std::min(threads_, n)))
@@ -484,7 +507,19 @@ void StageCalibrator::Measure(Fit* fit) const {
     try {
       Evaluator evaluator(*recs_[r].prepared, o_.simulation, model);
       ResidualAnalyser analyser(recs_[r].residual_facts);
-      fit->results[r] = evaluator.Evaluate(fit->values, analyser);
+      const std::optional<Vec2> clamp = ClampCentre(recs_[r].prepared->scene);
+      std::vector<Vec2>& tips = fit->tips[r];
+      const auto measure = [&](int frame, const Simulator& simulator, const BitMask& mesh_mask,
+                               const FrameScore& score) {
+        analyser(frame, simulator, mesh_mask, score);
+        if (!clamp) return;
+        Vec2 tip = simulator.positions().front();
+        for (const Vec2& p : simulator.positions()) {
+          if ((p - *clamp).squaredNorm() > (tip - *clamp).squaredNorm()) tip = p;
+        }
+        tips.push_back(tip);
+      };
+      fit->results[r] = evaluator.Evaluate(fit->values, measure);
       fit->residuals[r] = analyser.Finish();
       fit->residuals[r].recording = recs_[r].name;
     } catch (const std::exception& e) {

@@ -22,6 +22,29 @@ uint64_t BitsAt(const uint64_t* row, int words, int bit) {
 
 }  // namespace
 
+Vec2 FarthestPixelFrom(const BitMask& mask, const Vec2& point) {
+  Vec2 best(NAN, NAN);
+  double farthest = -1.0;
+  for (int y = 0; y < mask.height(); ++y) {
+    const uint64_t* row = mask.Row(y);
+    const double py = mask.origin_y() + y + 0.5;
+    for (int w = 0; w < mask.words_per_row(); ++w) {
+      uint64_t bits = row[w];
+      while (bits != 0) {
+        const int b = std::countr_zero(bits);
+        bits &= bits - 1;
+        const Vec2 p(mask.origin_x() + w * 64 + b + 0.5, py);
+        const double d = (p - point).squaredNorm();
+        if (d > farthest) {
+          farthest = d;
+          best = p;
+        }
+      }
+    }
+  }
+  return best;
+}
+
 MaskMoments ComputeMoments(const BitMask& mask) {
   MaskMoments m;
   // Sums relative to the mask's centre keep the second moments accurate.

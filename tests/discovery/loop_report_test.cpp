@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -76,7 +77,7 @@ LoopReport MakeReport(const fs::path& dir) {
   r.seed = 7;
   r.selection_rule = "keep an effect when the held-out XOR sum drops by more than 2%";
   r.run_time_s = 12.5;
-  r.recordings = {{"a", "/data/a", "train", 40, 30.0}, {"b", "/data/b", "holdout", 40, 30.0}};
+  r.recordings = {{"a", "/data/a", "train", 40, 30.0, {}, {}}, {"b", "/data/b", "holdout", 40, 30.0, {}, {}}};
 
   ReportStage base;
   base.name = "base";
@@ -91,15 +92,30 @@ LoopReport MakeReport(const fs::path& dir) {
   base.equally_good = {9, 450.0, 1150, 1420, 1260, 0.91};
   base.restart_training_xor = {2100.0, 1000.0, 1003.0};
   base.holdout_sensitivity_px = 12.5;
+  base.uninformative = true;
+  base.at_bounds = {"tau = 0.5 (upper bound)"};
+  // Recording a hangs from a clamp: its tip in the video and the models'.
+  for (int f = 0; f < 40; ++f) {
+    r.recordings[0].tip_x_px.push_back(150.0 + 10.0 * std::sin(0.5 * f));
+    r.recordings[0].tip_y_px.push_back(200.0);
+    base.errors[0].tip_x_px.push_back(140.0);
+    base.errors[0].tip_y_px.push_back(200.0);
+  }
+  base.errors[0].median_tip_distance_px = 12.25;
 
   ReportStage plastic = base;
   plastic.restart_training_xor.clear();
+  plastic.uninformative = false;
+  plastic.at_bounds.clear();
   plastic.name = "base+plasticity";
   plastic.effect_tried = "plasticity";
   plastic.decision = StageDecision::kAccepted;
   plastic.effects = {"plasticity"};
   plastic.parameters["plastic_yield_strain"] = 0.04;
   plastic.errors = {Error("a", 600, 40), Error("b", 700, 40)};
+  plastic.errors[0].tip_x_px = r.recordings[0].tip_x_px;
+  plastic.errors[0].tip_y_px = r.recordings[0].tip_y_px;
+  plastic.errors[0].median_tip_distance_px = 0.0;
   plastic.reason = "held-out XOR -42%";
   plastic.equally_good = {};
   plastic.holdout_sensitivity_parameter = "plastic_yield_strain";
@@ -183,6 +199,19 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   for (const auto& h : doc["rounds"][1]["hypotheses"]) EXPECT_NE(h["effect"], "plasticity");
   // The residuals are written without per-frame records.
   EXPECT_FALSE(doc["residuals"][0]["analysis"].contains("frames"));
+  // What the calibration's history says, where it says something.
+  EXPECT_EQ(doc["stages"][0]["uninformative"], true);
+  EXPECT_EQ(doc["stages"][0]["at_bounds"], nlohmann::json::array({"tau = 0.5 (upper bound)"}));
+  EXPECT_FALSE(doc["stages"][1].contains("uninformative"));
+  EXPECT_FALSE(doc["stages"][1].contains("at_bounds"));
+  EXPECT_TRUE(back.stages[0].uninformative);
+  // The tips, for the recording held by a clamp only.
+  EXPECT_EQ(doc["recordings"][0]["tip_x_px"].size(), 40u);
+  EXPECT_FALSE(doc["recordings"][1].contains("tip_x_px"));
+  EXPECT_EQ(back.recordings[0].tip_x_px, report.recordings[0].tip_x_px);
+  EXPECT_EQ(back.stages[0].errors[0].median_tip_distance_px, 12.25);
+  EXPECT_EQ(back.stages[0].errors[0].tip_x_px.size(), 40u);
+  EXPECT_TRUE(std::isnan(back.stages[0].errors[1].median_tip_distance_px));
 }
 
 // The message LoopReportFromJson throws for `doc`, or "accepted".
@@ -241,8 +270,9 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
   const LoopReport report = MakeReport(dir);
   const HtmlReportSummary summary = WriteLoopReport(dir, report);
   EXPECT_TRUE(summary.plots_made) << summary.plot_message;
-  // Bars, two per-frame error plots, two heat maps.
-  EXPECT_EQ(summary.plots, 5);
+  // Bars, two per-frame error plots, two per-frame IoU plots, two heat
+  // maps, and the tip of the recording held by a clamp.
+  EXPECT_EQ(summary.plots, 8);
   EXPECT_EQ(summary.overlays, 1);
   const std::string html = ReadText(dir / "report.html");
   EXPECT_EQ(Count(html, "<svg"), summary.plots);
@@ -257,6 +287,9 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
             std::string::npos)
       << "XOR sums rounded to whole px^2 in the table";
   EXPECT_NE(html.find("a note with &lt;html&gt; &amp; &quot;quotes&quot;"), std::string::npos);
+  EXPECT_NE(html.find("<b>uninformative</b>"), std::string::npos);
+  EXPECT_NE(html.find("on the box's bound: tau = 0.5 (upper bound)"), std::string::npos);
+  EXPECT_NE(html.find("The tip across the image over time"), std::string::npos);
   EXPECT_EQ(html.find("This report has no plots"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir / "report.json"));
 

@@ -448,6 +448,19 @@ TEST(Loop, SearchBoxesCoverEveryEffectAndNeutralValuesLieInThem) {
   EXPECT_THROW(StageParameterSettings({"levitation"}, scales), std::invalid_argument);
 }
 
+TEST(Loop, TheTipsMedianDistanceAndTheClampsCentre) {
+  Scene scene;
+  EXPECT_FALSE(ClampCentre(scene).has_value());
+  scene.clamps = {{270.0, 0.0, 76.0, 10.0}, {100.0, 0.0, 10.0, 10.0}};
+  EXPECT_EQ(*ClampCentre(scene), Vec2(0.5 * (308.0 + 105.0), 5.0));
+  const std::vector<Vec2> video{{0, 0}, {0, 0}, {0, 0}, {0, 0}, {0, 0}};
+  // Distances 1, 5, 2, 9 (the model stopped after four frames): median 3.5.
+  const std::vector<Vec2> model{{1, 0}, {0, 5}, {2, 0}, {9, 0}};
+  EXPECT_DOUBLE_EQ(MedianTipDistance(model, video), 3.5);
+  EXPECT_DOUBLE_EQ(MedianTipDistance({model.begin(), model.begin() + 3}, video), 2.0);
+  EXPECT_TRUE(std::isnan(MedianTipDistance({}, video)));
+}
+
 TEST(Loop, TheStagesWithInertiaSearchTheStiffnessesAboutTheSwingStiffness) {
   SearchScales scales;
   scales.swing_stiffness = 2.0e6;

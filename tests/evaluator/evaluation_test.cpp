@@ -6,6 +6,7 @@
 // simulate as 0, and the scene is built from the recording as the spec says.
 
 #include "calib/evaluator/evaluation.h"
+#include "calib/evaluator/mask_geometry.h"
 
 #include "reference_scene.h"
 
@@ -83,6 +84,17 @@ TEST(Evaluator, ScoresTheCoverageAndHandsOnTheHalfCoveredPixels) {
     EXPECT_EQ(plain.frames[f].xor_px, result.frames[f].xor_px) << "frame " << f;
   }
   EXPECT_EQ(plain.xor_sum, result.xor_sum);
+}
+
+TEST(FarthestPixelFrom, IsTheTipOfAHangingStrip) {
+  // A 10 px wide strip hanging from (50, 0) to row 79, its foot turned right.
+  BitMask mask(100, 100, 20, 10);
+  for (int y = 0; y < 80; ++y) mask.SetSpan(y, 25, 35);
+  for (int x = 35; x < 60; ++x) mask.Set(x, 79);
+  const Vec2 clamp(50.0, 10.0);  // frame pixels: the mask's origin is (20, 10)
+  const Vec2 tip = FarthestPixelFrom(mask, clamp);
+  EXPECT_EQ(tip, Vec2(20 + 59 + 0.5, 10 + 79 + 0.5));
+  EXPECT_TRUE(std::isnan(FarthestPixelFrom(BitMask(10, 10), clamp).x()));
 }
 
 TEST(FirstFrames, ScoresTheFirstFramesExactlyAsTheWholeRecordingDoes) {

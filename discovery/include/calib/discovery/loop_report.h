@@ -15,6 +15,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -29,6 +30,10 @@ struct ReportRecording {
   std::string role = "train";  ///< "train" or "holdout"
   int num_frames = 0;
   double fps = 0.0;
+  /// For an object held by clamps: its tip in every frame, the object's
+  /// pixel farthest from the clamps' centre (FarthestPixelFrom), px; empty
+  /// otherwise.
+  std::vector<double> tip_x_px, tip_y_px;
 };
 
 /// How one calibrated model did on one recording.
@@ -39,6 +44,12 @@ struct RecordingScore {
   double mean_iou = 0.0;
   std::vector<double> frame_xor;  ///< per frame (may be empty); plotted
   std::vector<double> frame_iou;
+  /// For an object held by clamps: the model's tip per frame simulated
+  /// (the node farthest from the clamps' centre), px, and the median over
+  /// the frames of its distance to the video's tip (ReportRecording); empty
+  /// and NaN otherwise.
+  std::vector<double> tip_x_px, tip_y_px;
+  double median_tip_distance_px = NAN;
 
   /// From an evaluation (per-frame values included).
   static RecordingScore FromEvaluation(const std::string& recording, const EvaluationResult& result);

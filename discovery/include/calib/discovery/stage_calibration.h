@@ -18,6 +18,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,15 @@ namespace calib {
 /// its nodes x `mass` x the fastest obstacle's speed between two frames
 /// (px/s); 0 without a moving obstacle.
 double ModelDragForce(const Mesh& mesh, const Scene& scene, double mass);
+
+/// The centre of a scene's clamps (the mean of their rectangles' centres),
+/// from which a hanging object's tip is the farthest point; nullopt
+/// without clamps.
+std::optional<Vec2> ClampCentre(const Scene& scene);
+
+/// The median over the frames both have of the distance between the
+/// model's and the video's tips (px); NaN when they share no finite one.
+double MedianTipDistance(const std::vector<Vec2>& model, const std::vector<Vec2>& video);
 
 /// What a recording of an object swinging freely says about the stiffness
 /// of a model with inertia (SearchScales::swing_stiffness).

@@ -23,6 +23,11 @@ struct MaskMoments {
 };
 MaskMoments ComputeMoments(const BitMask& mask);
 
+/// The centre of the mask's pixel farthest from `point` (frame pixels; the
+/// first in row order on ties): a hanging object's tip, for `point` its
+/// clamp. (NaN, NaN) for an empty mask.
+Vec2 FarthestPixelFrom(const BitMask& mask, const Vec2& point);
+
 /// |a XOR (b shifted by (dx, dy))|: the XOR after moving b's content dx
 /// pixels right and dy down, over a's extent (b's pixels shifted outside it
 /// are not counted). a and b must have the same shape.
