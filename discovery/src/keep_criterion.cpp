@@ -115,7 +115,16 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
   const Fit& current = ablation != nullptr ? *ablation : previous;
   Verdict v;
   if (!candidate.AllOk()) {
-    v.reason = "the calibrated model fails to simulate a recording";
+    // Named with the recording and the frame: where the fit breaks is what
+    // a refit within the bounds that simulate would start from.
+    for (size_t r = 0; r < candidate.results.size() && r < recs_.size(); ++r) {
+      const EvaluationResult& e = candidate.results[r];
+      if (e.ok()) continue;
+      v.reason = fmt::format("the calibrated model fails to simulate {} ({}) from frame {}: {}",
+                             recs_[r].name, recs_[r].train ? "training" : "held out",
+                             e.failure_frame, e.failure_reason);
+      break;
+    }
     return v;
   }
   const double train_before = current.XorSum(recs_, true);

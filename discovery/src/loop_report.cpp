@@ -103,6 +103,10 @@ json ToJson(const RecordingScore& e) {
   json j = {{"recording", e.recording}, {"status", e.status},   {"xor_sum", e.xor_sum},
             {"mean_iou", JsonNumber(e.mean_iou)}, {"frame_xor", e.frame_xor},
             {"frame_iou", Numbers(e.frame_iou)}};
+  if (e.failure_frame >= 0) {
+    j["failure_frame"] = e.failure_frame;
+    j["failure_reason"] = e.failure_reason;
+  }
   if (!e.tip_x_px.empty()) {
     j["tip_x_px"] = Numbers(e.tip_x_px);
     j["tip_y_px"] = Numbers(e.tip_y_px);
@@ -124,6 +128,10 @@ RecordingScore ErrorFromJson(const json& j, const std::string& path) {
   }
   for (const json& v : in.Array("frame_iou")) {
     e.frame_iou.push_back(v.is_null() ? NAN : v.get<double>());
+  }
+  if (j.contains("failure_frame")) {  // optional: failed simulations only
+    e.failure_frame = static_cast<int>(in.Int("failure_frame"));
+    e.failure_reason = in.Text("failure_reason");
   }
   // Optional: objects held by clamps only.
   e.tip_x_px = OptionalNumbers(in, j, "tip_x_px");
@@ -270,6 +278,8 @@ RecordingScore RecordingScore::FromEvaluation(const std::string& recording,
   RecordingScore e;
   e.recording = recording;
   e.status = ToString(result.status);
+  e.failure_frame = result.ok() ? -1 : result.failure_frame;
+  e.failure_reason = result.ok() ? std::string() : result.failure_reason;
   e.xor_sum = result.xor_sum;
   e.mean_iou = result.mean_iou;
   for (const FrameScore& f : result.frames) {

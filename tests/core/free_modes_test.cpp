@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 namespace calib {
@@ -35,7 +36,7 @@ TEST(FreeModes, AStripAtTheSwingStiffnessSwingsWithTheAskedPeriod) {
   ASSERT_TRUE(std::isfinite(rate) && rate > 0.0) << rate;
   const double k = SwingStiffness(rate, period_s, mass);
   ASSERT_TRUE(std::isfinite(k) && k > 0.0) << k;
-  EXPECT_NEAR(k * rate / mass, std::pow(2.0 * M_PI / period_s, 2), 1e-9 * k * rate / mass);
+  EXPECT_NEAR(k * rate / mass, std::pow(2.0 * std::numbers::pi / period_s, 2), 1e-9 * k * rate / mass);
 
   // Released at rest under a small sideways load (which adds no
   // stiffness), the strip swings about its loaded equilibrium; the uniform

@@ -128,6 +128,9 @@ LoopReport MakeReport(const fs::path& dir) {
   friction.effects = {"plasticity", "table_friction"};
   friction.errors = {Error("a", 590, 40), Error("b", 710, 40)};
   friction.reason = "held-out XOR +1%: no gain";
+  friction.errors[1].status = "failed";
+  friction.errors[1].failure_frame = 31;
+  friction.errors[1].failure_reason = "triangle 9 stays inverted after 8 constraint iterations";
   r.stages = {base, plastic, friction};
 
   const ResidualAnalysis before = ShiftAnalysis("a", 6.0, 40);
@@ -199,6 +202,11 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   for (const auto& h : doc["rounds"][1]["hypotheses"]) EXPECT_NE(h["effect"], "plasticity");
   // The residuals are written without per-frame records.
   EXPECT_FALSE(doc["residuals"][0]["analysis"].contains("frames"));
+  // A failed simulation keeps its frame and reason; the others have none.
+  EXPECT_EQ(doc["stages"][2]["errors"][1]["failure_frame"], 31);
+  EXPECT_EQ(back.stages[2].errors[1].failure_reason, "triangle 9 stays inverted after 8 constraint iterations");
+  EXPECT_FALSE(doc["stages"][2]["errors"][0].contains("failure_frame"));
+  EXPECT_EQ(back.stages[2].errors[0].failure_frame, -1);
   // What the calibration's history says, where it says something.
   EXPECT_EQ(doc["stages"][0]["uninformative"], true);
   EXPECT_EQ(doc["stages"][0]["at_bounds"], nlohmann::json::array({"tau = 0.5 (upper bound)"}));

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -51,7 +52,7 @@ TEST(ShapeTracking, FollowsAStripMovedRigidlyNodeByNode) {
   const Vec2 pivot(100, 40);
   const std::vector<Vec2> corners{{85, 40}, {115, 40}, {115, 160}, {85, 160}};
   // Swinging 0.3 rad either way about its top, drifting right.
-  const auto angle = [](int f) { return 0.3 * std::sin(2.0 * M_PI * f / 40.0); };
+  const auto angle = [](int f) { return 0.3 * std::sin(2.0 * std::numbers::pi * f / 40.0); };
   const auto place = [&](const Vec2& p, int f) -> Vec2 {
     return Rotated(p, pivot, angle(f)) + Vec2(0.4 * f, 0.0);
   };

@@ -40,6 +40,9 @@ struct ReportRecording {
 struct RecordingScore {
   std::string recording;       ///< a ReportRecording::name
   std::string status = "ok";   ///< "ok" or "failed"
+  /// Failed: the first frame not simulated and why; -1 and empty when ok.
+  int failure_frame = -1;
+  std::string failure_reason;
   double xor_sum = 0.0;        ///< XOR pixel area (px^2) summed over the frames
   double mean_iou = 0.0;
   std::vector<double> frame_xor;  ///< per frame (may be empty); plotted
