@@ -5,8 +5,21 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string_view>
 
 namespace calib {
+namespace {
+
+// An angle searched over a whole turn (a name in degrees, a box 360 wide)
+// has no bound: its ends are the same direction.
+bool IsWholeTurn(const ParameterSetting& s) {
+  constexpr std::string_view kDegrees = "_deg";
+  const bool degrees = s.name.size() >= kDegrees.size() &&
+                       s.name.compare(s.name.size() - kDegrees.size(), kDegrees.size(), kDegrees) == 0;
+  return degrees && s.upper - s.lower >= 360.0;
+}
+
+}  // namespace
 
 std::string FitDiagnostics::Summary() const {
   std::string out;
@@ -33,6 +46,9 @@ FitDiagnostics DiagnoseFit(const std::vector<ParameterSetting>& settings,
     const std::vector<std::string> names = space.names();
     const std::vector<double> unit = space.ToUnit(best);
     for (size_t k = 0; k < names.size(); ++k) {
+      const auto setting = std::find_if(settings.begin(), settings.end(),
+                                        [&](const ParameterSetting& s) { return s.name == names[k]; });
+      if (setting != settings.end() && IsWholeTurn(*setting)) continue;
       const double value = best.at(names[k]);
       if (unit[k] <= FitDiagnostics::kBoundShare) {
         d.at_bounds.push_back(fmt::format("{} = {:g} (lower bound)", names[k], value));

@@ -47,6 +47,20 @@ TEST(FitDiagnostics, NamesTheParametersOnTheirBoxsBounds) {
   EXPECT_NE(upper.Summary().find("on the search box's bound: k_D = 100000 (upper bound)"), std::string::npos);
 }
 
+TEST(FitDiagnostics, AnAngleSearchedOverAWholeTurnHasNoBound) {
+  std::vector<ParameterSetting> settings = Settings();
+  ParameterSetting angle;
+  angle.name = "gravity_angle_deg";
+  angle.lower = -180.0;
+  angle.upper = 180.0;
+  settings.push_back(angle);
+  const ParameterValues best{{"k_D", 300.0}, {"tau", 0.2}, {"mass", 0.2}, {"gravity_angle_deg", -180.0}};
+  EXPECT_TRUE(DiagnoseFit(settings, best, {}).at_bounds.empty());
+  settings.back().upper = 90.0;  // part of a turn: its ends are bounds
+  ASSERT_EQ(DiagnoseFit(settings, best, {}).at_bounds.size(), 1u);
+  EXPECT_EQ(DiagnoseFit(settings, best, {}).at_bounds[0], "gravity_angle_deg = -180 (lower bound)");
+}
+
 TEST(FitDiagnostics, AScoreThatNoCandidateMovedIsUninformative) {
   const std::vector<EvaluationRecord> flat{Evaluation(7088623.0), Evaluation(7088623.0),
                                            Evaluation(0.0, false), Evaluation(7088623.0)};

@@ -17,7 +17,8 @@ namespace calib {
 struct FitDiagnostics {
   /// Searched parameters whose best value lies on a bound of its box
   /// (within kBoundShare of the box's width on its search scale), in the
-  /// settings' order, e.g. "k_phi = 1e+06 (upper bound)".
+  /// settings' order, e.g. "k_phi = 1e+06 (upper bound)". An angle searched
+  /// over a whole turn (a name ending in _deg, a box 360 wide) has no bound.
   std::vector<std::string> at_bounds;
   /// Every successful evaluation (at least two) scored the same to
   /// kFlatRelative: the score does not depend on the parameters, and the
