@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <stdexcept>
 
@@ -94,21 +95,21 @@ JobReport WriteJobReport(const JobSpec& spec, ResultStore& store, int64_t job,
   store.ExportCsv(job, report.evaluations_csv);
   report.job_json = report.out_dir / "job.json";
 
-  const bool has_best = store.Best(job).has_value();
+  const std::optional<EvaluationRecord> best = store.Best(job);
+  const bool has_best = best.has_value();
   if (has_best) {
+    // The history once, for the plot and for what it says about the fit.
+    const std::vector<EvaluationRecord> evaluations = store.Evaluations(job);
     // A plot is for people: without gnuplot the report goes on without it.
     try {
-      WriteConvergencePlot(report.out_dir / "convergence.svg", store.Evaluations(job), spec.name);
+      WriteConvergencePlot(report.out_dir / "convergence.svg", evaluations, spec.name);
       report.convergence_svg = report.out_dir / "convergence.svg";
     } catch (const std::runtime_error& e) {
       spdlog::warn("{}: no convergence plot: {}", spec.name, e.what());
     }
-  }
-  if (has_best) {
     report.best_params = report.out_dir / "best_params.json";
     store.WriteBestParameterFile(job, report.best_params);
-    const std::vector<EvaluationRecord> evaluations = store.Evaluations(job);
-    report.diagnostics = DiagnoseFit(spec.parameters, store.Best(job)->parameters, evaluations).Summary();
+    report.diagnostics = DiagnoseFit(spec.parameters, best->parameters, evaluations).Summary();
   }
 
   nlohmann::json result = {{"recordings", nlohmann::json::array()}};
