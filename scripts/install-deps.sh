@@ -16,6 +16,7 @@ packages=(
   libcpp-httplib-dev
   libcsv-dev
   libopenmpi-dev openmpi-bin
+  iproute2
   gnuplot-nox
   python3 python3-yaml
   python3-scipy python3-optuna python3-cmaes
