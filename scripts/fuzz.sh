@@ -19,7 +19,7 @@ target="${1:-all}"
 runs="${2:-1000000}"
 build=build-fuzz
 all_targets=(fuzz_recording_json fuzz_track_csv fuzz_job_spec fuzz_parameter_file
-             fuzz_segmentation_cache fuzz_checkpoint)
+             fuzz_segmentation_cache fuzz_checkpoint fuzz_request_body)
 
 # The largest input worth trying per target: a few times its largest seed.
 max_len() {
