@@ -34,7 +34,8 @@ class TrivialObjective final : public Objective {
  public:
   std::unique_ptr<ObjectiveWorker> MakeWorker() const override {
     struct Worker final : ObjectiveWorker {
-      ObjectiveResult Evaluate(const ParameterValues& values) override {
+      using ObjectiveWorker::Evaluate;
+      ObjectiveResult Evaluate(const ParameterValues& values, const EarlyStop& /*stop*/) override {
         ObjectiveResult r;
         r.status = CandidateStatus::kOk;
         r.score = values.at("k_D") + values.at("tau");

@@ -569,7 +569,7 @@ std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<Para
     const RecordingObjective objective({recs_[held[h]].prepared}, o_.simulation, model);
     const std::unique_ptr<BatchEvaluator> evaluator = MakeEvaluator(objective);
     evaluator->Evaluate(
-        batch, /*max_attempts=*/1, [] { return false; },
+        batch, /*max_attempts=*/1, /*prune=*/nullptr, [] { return false; },
         [&](std::vector<FinishedCandidate>&& done) {
           for (const FinishedCandidate& c : done) {
             HeldOutScore& s = scores[static_cast<size_t>(c.id) * held.size() + h];

@@ -159,6 +159,7 @@ namespace {
 constexpr auto kEvaluationStatusNames = std::to_array<EnumName<EvaluationStatus>>({
     {EvaluationStatus::kOk, "ok"},
     {EvaluationStatus::kFailed, "failed"},
+    {EvaluationStatus::kStopped, "stopped"},
 });
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "calib/jobs/batch_evaluator.h"
 
+#include "calib/jobs/pruning.h"
+
 #include <fmt/format.h>
 #include <omp.h>
 
@@ -13,7 +15,8 @@
 namespace calib {
 
 FinishedCandidate EvaluateWithRetries(ObjectiveWorker& worker, const PendingCandidate& candidate,
-                                      int max_attempts, const std::string& worker_label) {
+                                      const EarlyStop& stop, int max_attempts,
+                                      const std::string& worker_label) {
   FinishedCandidate finished;
   finished.id = candidate.id;
   finished.worker = worker_label;
@@ -21,7 +24,7 @@ FinishedCandidate EvaluateWithRetries(ObjectiveWorker& worker, const PendingCand
   for (int attempt = 1; attempt <= max_attempts; ++attempt) {
     const auto start = std::chrono::steady_clock::now();
     try {
-      finished.result = worker.Evaluate(candidate.values);
+      finished.result = worker.Evaluate(candidate.values, stop);
     } catch (const std::exception& e) {
       finished.result = ObjectiveResult{};
       finished.result.reason = fmt::format("exception: {}", e.what());
@@ -31,7 +34,7 @@ FinishedCandidate EvaluateWithRetries(ObjectiveWorker& worker, const PendingCand
     }
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     finished.attempts = attempt;
-    if (finished.result.ok()) break;
+    if (finished.result.status != CandidateStatus::kFailed) break;
   }
   finished.result.eval_seconds = seconds;
   return finished;
@@ -69,7 +72,7 @@ std::string ThreadBatchEvaluator::Describe() const {
 }
 
 void ThreadBatchEvaluator::Evaluate(
-    std::span<const PendingCandidate> batch, int max_attempts,
+    std::span<const PendingCandidate> batch, int max_attempts, const PruneBounds* prune,
     const std::function<bool()>& should_stop,
     const std::function<void(std::vector<FinishedCandidate>&&)>& on_done, double tick_s) {
   if (max_attempts < 1) throw std::invalid_argument("max_attempts must be >= 1");
@@ -103,8 +106,9 @@ void ThreadBatchEvaluator::Evaluate(
           index = next++;
         }
         try {
+          const EarlyStop stop = prune ? prune->StartFor(batch[index].id) : EarlyStop{};
           FinishedCandidate done =
-              EvaluateWithRetries(*workers_[thread], batch[index], max_attempts, label);
+              EvaluateWithRetries(*workers_[thread], batch[index], stop, max_attempts, label);
           std::lock_guard<std::mutex> lock(mutex);
           finished.push_back(std::move(done));
         } catch (...) {  // e.g. bad_alloc outside the objective: never escapes a thread

@@ -186,6 +186,9 @@ nlohmann::json ToJson(const JobSpec& spec) {
   out["optimizer"] = {{"name", spec.optimizer.name}, {"settings", spec.optimizer.settings}};
   out["budget"] = {{"evaluations", spec.budget.evaluations}};
   if (spec.budget.wall_time_s) out["budget"]["wall_time_s"] = *spec.budget.wall_time_s;
+  // Written only when set: a job stored before the key existed (no pruning)
+  // keeps the same spec and resumes.
+  if (spec.budget.prune_factor) out["budget"]["prune_factor"] = *spec.budget.prune_factor;
   out["seed"] = spec.seed;
   out["threads"] = spec.threads;
   out["processes"] = spec.processes;

@@ -419,8 +419,9 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
 
   // budget before optimizer: the optimiser's own budget defaults to it.
   const bool budget_read = errors.Check([&] {
-    MapReader b(top.Require("budget", "a map with evaluations (and optional wall_time_s)"), "budget",
-                &spec.source);
+    MapReader b(top.Require("budget",
+                            "a map with evaluations (and optional wall_time_s, prune_factor)"),
+                "budget", &spec.source);
     const YAML::Node ev = b.Require("evaluations", "an integer >= 1");
     spec.budget.evaluations = b.Int("evaluations", ev);
     if (spec.budget.evaluations < 1) b.Fail("budget.evaluations", ev, "must be >= 1");
@@ -436,6 +437,16 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
       const double w = b.Double("wall_time_s", n);
       if (!(w > 0.0)) b.Fail("budget.wall_time_s", n, "must be > 0");
       spec.budget.wall_time_s = w;
+    }
+    if (b.Has("prune_factor")) {
+      const YAML::Node n = b.node()["prune_factor"];
+      const double f = b.Double("prune_factor", n);
+      if (!(f > 1.0)) {
+        b.Fail("budget.prune_factor", n,
+               "must be > 1 (a candidate is pruned when its score so far exceeds this factor "
+               "times the best score before it)");
+      }
+      spec.budget.prune_factor = f;
     }
     b.Finish();
   });

@@ -1,5 +1,7 @@
 #include "calib/jobs/mpi_evaluator.h"
 
+#include "calib/jobs/pruning.h"
+
 #include <fmt/format.h>
 #include <mpi.h>
 
@@ -29,6 +31,13 @@ class Writer {
     Put<uint64_t>(s.size());
     bytes_.insert(bytes_.end(), s.begin(), s.end());
   }
+  template <class T>
+  void PutVector(const std::vector<T>& values) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    Put<uint64_t>(values.size());
+    const auto* p = reinterpret_cast<const char*>(values.data());
+    bytes_.insert(bytes_.end(), p, p + values.size() * sizeof(T));
+  }
   const std::vector<char>& bytes() const { return bytes_; }
 
  private:
@@ -54,10 +63,21 @@ class Reader {
     pos_ += n;
     return s;
   }
+  template <class T>
+  std::vector<T> GetVector() {
+    static_assert(std::is_trivially_copyable_v<T>);
+    const auto n = Get<uint64_t>();
+    if (n > bytes_.size()) Need(n);  // before n * sizeof(T) can overflow
+    Need(n * sizeof(T));
+    std::vector<T> values(n);
+    std::memcpy(values.data(), bytes_.data() + pos_, n * sizeof(T));
+    pos_ += n * sizeof(T);
+    return values;
+  }
 
  private:
   void Need(size_t n) const {
-    if (pos_ + n > bytes_.size()) throw std::runtime_error("MPI message is truncated");
+    if (n > bytes_.size() - pos_) throw std::runtime_error("MPI message is truncated");
   }
   const std::vector<char>& bytes_;
   size_t pos_ = 0;
@@ -97,7 +117,7 @@ void PutResult(Writer& w, const FinishedCandidate& f) {
   w.Put<int64_t>(f.id);
   w.Put<int32_t>(f.attempts);
   w.PutString(f.worker);
-  w.Put<int32_t>(r.ok() ? 0 : 1);
+  w.PutString(ToString(r.status));
   w.Put<double>(r.score);
   w.Put<double>(r.iou.mean);
   w.Put<double>(r.iou.min);
@@ -110,6 +130,8 @@ void PutResult(Writer& w, const FinishedCandidate& f) {
   w.Put<int32_t>(r.failure_frame);
   w.Put<int32_t>(r.failure_recording);
   w.Put<double>(r.eval_seconds);
+  w.PutVector(r.trace);
+  w.PutVector(r.recording_frames);
 }
 
 FinishedCandidate GetResult(Reader& in) {
@@ -118,7 +140,7 @@ FinishedCandidate GetResult(Reader& in) {
   f.id = in.Get<int64_t>();
   f.attempts = in.Get<int32_t>();
   f.worker = in.GetString();
-  r.status = in.Get<int32_t>() == 0 ? CandidateStatus::kOk : CandidateStatus::kFailed;
+  r.status = CandidateStatusFromString(in.GetString());
   r.score = in.Get<double>();
   r.iou.mean = in.Get<double>();
   r.iou.min = in.Get<double>();
@@ -131,6 +153,8 @@ FinishedCandidate GetResult(Reader& in) {
   r.failure_frame = in.Get<int32_t>();
   r.failure_recording = in.Get<int32_t>();
   r.eval_seconds = in.Get<double>();
+  r.trace = in.GetVector<double>();
+  r.recording_frames = in.GetVector<int>();
   return f;
 }
 
@@ -191,7 +215,7 @@ void MpiBatchEvaluator::StopWorkers() {
 }
 
 void MpiBatchEvaluator::Evaluate(
-    std::span<const PendingCandidate> batch, int max_attempts,
+    std::span<const PendingCandidate> batch, int max_attempts, const PruneBounds* prune,
     const std::function<bool()>& should_stop,
     const std::function<void(std::vector<FinishedCandidate>&&)>& on_done, double tick_s) {
   if (stopped_) throw std::logic_error("MPI workers were already stopped");
@@ -208,9 +232,12 @@ void MpiBatchEvaluator::Evaluate(
     // Starts in batch order, none after a stop: what finishes is a prefix.
     while (!stop && next < batch.size() && !idle.empty()) {
       const PendingCandidate& c = batch[next++];
+      const EarlyStop stop = prune ? prune->StartFor(c.id) : EarlyStop{};
       Writer w;
       w.Put<int64_t>(c.id);
       w.Put<int32_t>(max_attempts);
+      w.Put<double>(stop.stop_above);
+      w.Put<uint8_t>(stop.trace ? 1 : 0);
       w.Put<uint64_t>(c.values.size());
       for (const auto& [name, value] : c.values) {
         w.PutString(name);
@@ -273,12 +300,16 @@ int64_t RunMpiWorker(const std::function<std::unique_ptr<Objective>()>& make_obj
     PendingCandidate candidate;
     candidate.id = in.Get<int64_t>();
     const int32_t max_attempts = in.Get<int32_t>();
+    EarlyStop stop;
+    stop.stop_above = in.Get<double>();
+    stop.trace = in.Get<uint8_t>() != 0;
     const auto n = in.Get<uint64_t>();
     for (uint64_t i = 0; i < n; ++i) {
       std::string name = in.GetString();
       candidate.values[name] = in.Get<double>();
     }
-    const FinishedCandidate done = EvaluateWithRetries(*worker, candidate, max_attempts, label);
+    const FinishedCandidate done =
+        EvaluateWithRetries(*worker, candidate, stop, max_attempts, label);
     Writer w;
     PutResult(w, done);
     Send(w, 0, kResult);

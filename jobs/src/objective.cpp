@@ -15,6 +15,7 @@ namespace {
 constexpr auto kCandidateStatusNames = std::to_array<EnumName<CandidateStatus>>({
     {CandidateStatus::kOk, "ok"},
     {CandidateStatus::kFailed, "failed"},
+    {CandidateStatus::kPruned, "pruned"},
 });
 
 }  // namespace
@@ -50,7 +51,9 @@ ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& res
       }
     }
     out.iou.frames_scored += static_cast<int>(result.frames.size());
-    if (!result.ok() && out.status == CandidateStatus::kOk) {
+    if (result.status == EvaluationStatus::kStopped && out.status == CandidateStatus::kOk) {
+      out.status = CandidateStatus::kPruned;
+    } else if (!result.ok() && out.status == CandidateStatus::kOk) {
       out.status = CandidateStatus::kFailed;
       out.failure_frame = result.failure_frame;
       out.failure_recording = static_cast<int>(r);
@@ -73,19 +76,41 @@ class RecordingWorker final : public ObjectiveWorker {
     for (const auto& prepared : recordings) {
       evaluators_.emplace_back(*prepared, options, model);
       names_.push_back(RecordingDisplayName(prepared->recording.folder));
+      recording_frames_.push_back(prepared->scene.num_frames);
       frames_total_ += prepared->scene.num_frames;
     }
     results_.reserve(recordings.size());
+    trace_.reserve(frames_total_);
   }
 
-  ObjectiveResult Evaluate(const ParameterValues& values) override {
+  using ObjectiveWorker::Evaluate;
+  ObjectiveResult Evaluate(const ParameterValues& values, const EarlyStop& stop) override {
     results_.clear();
+    trace_.clear();
+    // The recordings' scores summed in order, as CombineRecordingResults
+    // sums them: the score so far after frame f of recording r is
+    // score_before + (its frames 0..f summed in order), which after the last
+    // recording's last frame is the candidate's score bit for bit.
+    ScoreCutoff cutoff{0.0, stop.stop_above};
     for (Evaluator& evaluator : evaluators_) {
-      results_.push_back(evaluator.Evaluate(values));
-      if (!results_.back().ok()) break;  // the candidate has failed: spare the rest
+      const EvaluationResult& result =
+          results_.emplace_back(evaluator.EvaluateWithCutoff(values, cutoff));
+      if (stop.trace) {
+        double xor_sum = 0.0;  // as Evaluator sums it
+        for (const FrameScore& frame : result.frames) {
+          xor_sum += frame.xor_px;
+          trace_.push_back(cutoff.score_before + xor_sum);
+        }
+      }
+      cutoff.score_before += result.xor_sum;
+      if (!result.ok()) break;  // failed or stopped: spare the rest
     }
     ObjectiveResult result = CombineRecordingResults(results_, names_);
     result.iou.frames_total = frames_total_;  // also the recordings spared
+    if (stop.trace) {
+      result.trace = trace_;
+      result.recording_frames = recording_frames_;
+    }
     return result;
   }
 
@@ -93,6 +118,8 @@ class RecordingWorker final : public ObjectiveWorker {
   std::vector<Evaluator> evaluators_;
   std::vector<std::string> names_;
   std::vector<EvaluationResult> results_;
+  std::vector<int> recording_frames_;
+  std::vector<double> trace_;  // reserved for every frame: no allocation per frame
   int frames_total_ = 0;
 };
 

@@ -64,6 +64,7 @@ std::string FormatProgressBar(const RunProgress& p, double rate, int width) {
   const int64_t done = std::min(p.budget, p.evaluations + p.running);
   std::string tail = fmt::format("  {}/{}  {:.2f} eval/s  {}", done, p.budget, rate, BestText(p));
   if (p.failed > 0) tail += fmt::format("  failed {}", p.failed);
+  if (p.pruned > 0) tail += fmt::format("  pruned {}", p.pruned);
   tail += fmt::format("  ETA {}", FormatDuration(EtaSeconds(p, rate)));
   const int bar_width = std::clamp(width - 3 - static_cast<int>(tail.size()), 10, 40);
   const double fraction =
@@ -81,6 +82,7 @@ std::string FormatProgressLine(const RunProgress& p, double rate) {
   std::string line = fmt::format("{}/{} evaluations ({:.1f} %), {:.2f} eval/s, {}", done, p.budget,
                                  percent, rate, BestText(p));
   if (p.failed > 0) line += fmt::format(", {} failed", p.failed);
+  if (p.pruned > 0) line += fmt::format(", {} pruned", p.pruned);
   line += fmt::format(", elapsed {}, ETA {}", FormatDuration(p.elapsed_s),
                       FormatDuration(EtaSeconds(p, rate)));
   return line;

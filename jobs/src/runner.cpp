@@ -1,6 +1,7 @@
 #include "calib/jobs/runner.h"
 
 #include "calib/jobs/checkpoint.h"
+#include "calib/jobs/pruning.h"
 
 #include <fmt/format.h>
 
@@ -9,6 +10,7 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 
@@ -33,8 +35,9 @@ bool RunControl::IsValid(std::string* error) const {
 std::string RunSummary::BriefReport() const {
   std::string text = fmt::format("status: {}{}\n", ToString(status),
                                  stop_reason.empty() ? "" : " (" + stop_reason + ")");
-  text += fmt::format("evaluations: {} ({} failed); this run: {} simulated, {} reused", evaluations,
-                      failed, evaluated_now, reused);
+  text += fmt::format("evaluations: {} ({} failed{}); this run: {} simulated, {} reused",
+                      evaluations, failed, pruned > 0 ? fmt::format(", {} pruned", pruned) : "",
+                      evaluated_now, reused);
   if (resumed_from_checkpoint) text += fmt::format(", resumed from checkpoint {}", *resumed_from_checkpoint);
   text += '\n';
   if (best) {
@@ -94,13 +97,47 @@ EvaluationRecord ToRecord(const FinishedCandidate& done, const search::Candidate
   return rec;
 }
 
+// A finished candidate that pruning.h's rule prunes at `at`, its bound being
+// `factor` x the score of evaluation `best`. What it did after that frame
+// (ran on, stopped at a looser bound, failed later) depends on the run and
+// is left out: only the frames up to `at` and what follows from them.
+EvaluationRecord ToPrunedRecord(const FinishedCandidate& done, const search::Candidate& candidate,
+                                const ParameterValues& values, const PrunePoint& at,
+                                double factor, const EvaluationRecord& best) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EvaluationRecord rec;
+  rec.id = done.id;
+  rec.parameters = values;
+  rec.x = candidate.x;
+  rec.pruned = true;
+  rec.score = at.score;
+  rec.mean_iou = nan;
+  rec.iou_min = nan;
+  rec.iou_max = nan;
+  rec.pruned_recording = at.recording;
+  rec.pruned_frame = at.frame;
+  rec.reason = fmt::format(
+      "pruned at recording {} frame {}: score so far {} > {} x {} (the best before it, "
+      "evaluation {})",
+      at.recording, at.frame, at.score, factor, best.score, best.id);
+  rec.eval_time_s = done.result.eval_seconds;
+  rec.worker = done.worker;
+  // Retries of a simulation that failed after the pruning frame are not part
+  // of the history (a run stopped before the failure made none).
+  rec.attempt = 1;
+  rec.detail = {{"frames_scored", at.frames}, {"frames_total", done.result.iou.frames_total}};
+  return rec;
+}
+
 // What the optimiser is told for a recorded evaluation (fresh or reused
-// alike, so a resumed run tells exactly what an uninterrupted one did).
+// alike, so a resumed run tells exactly what an uninterrupted one did). A
+// pruned one: its score so far at the pruning frame, a lower bound of its
+// score and already worse than the best before it by the prune factor.
 search::Evaluation ToTold(const EvaluationRecord& rec, const FailurePolicy& policy) {
   search::Evaluation e;
   e.id = rec.id;
   e.x = rec.x;
-  if (rec.ok) {
+  if (rec.ok || rec.pruned) {
     e.value = rec.score;
   } else if (policy.penalty_score) {
     e.value = *policy.penalty_score;
@@ -110,6 +147,9 @@ search::Evaluation ToTold(const EvaluationRecord& rec, const FailurePolicy& poli
   }
   return e;
 }
+
+// Failed, as the failure policy counts: a pruned evaluation is not.
+bool Failed(const EvaluationRecord& rec) { return !rec.ok && !rec.pruned; }
 
 // Lowest score among ok evaluations, ties to the lowest id (as the store
 // and the optimiser rank).
@@ -133,7 +173,11 @@ class Run {
         space_(request),
         optimizer_(MakeRequestOptimizer(request)),
         start_(Clock::now()),
-        last_checkpoint_time_(start_) {}
+        last_checkpoint_time_(start_) {
+    if (request.budget.prune_factor) {
+      prune_ = std::make_unique<PruneBounds>(*request.budget.prune_factor);
+    }
+  }
 
   RunSummary Go() {
     Restore();
@@ -184,6 +228,7 @@ class Run {
     for (EvaluationRecord& rec : all) {
       if (rec.id < told_) {
         ++before;
+        if (rec.pruned) ++pruned_;
         UpdateBest(best_, rec);
       } else {
         const int64_t id = rec.id;
@@ -195,6 +240,7 @@ class Run {
           "{}: job '{}': the checkpoint covers evaluations 0..{} but the store holds {} of them",
           store_.path().string(), spec_.name, told_ - 1, before));
     }
+    if (prune_ && best_) prune_->AddCompleted(best_->id, best_->score);
   }
 
   bool ShouldStop() {
@@ -249,10 +295,55 @@ class Run {
     }
   }
 
+  // With pruning: records, in id order, the finished candidates of `batch`
+  // whose predecessors are all recorded (or reused), each decided by
+  // pruning.h's rule with its exact bound; they leave `finished`. Those
+  // after a candidate still running wait for it.
+  std::vector<EvaluationRecord> ResolvePruning(const std::vector<search::Candidate>& batch,
+                                               const std::vector<ParameterValues>& values,
+                                               const std::map<int64_t, EvaluationRecord>& results,
+                                               std::map<int64_t, FinishedCandidate>& finished) {
+    std::vector<EvaluationRecord> records;
+    for (; resolved_ < batch.size(); ++resolved_) {
+      const search::Candidate& c = batch[resolved_];
+      if (auto reused = results.find(c.id); reused != results.end()) {
+        UpdateBest(resolved_best_, reused->second);
+        continue;
+      }
+      auto it = finished.find(c.id);
+      if (it == finished.end()) break;
+      const FinishedCandidate& done = it->second;
+      if (done.result.ok() && done.result.trace.empty()) {
+        throw std::logic_error(fmt::format(
+            "evaluation {}: the objective returned no trace of its score, which pruning needs",
+            c.id));
+      }
+      std::optional<PrunePoint> at;  // none while no evaluation before it is ok
+      if (resolved_best_) {
+        at = FindPrunePoint(done.result, prune_->factor() * resolved_best_->score);
+      }
+      if (at) {
+        records.push_back(ToPrunedRecord(done, c, values[resolved_], *at, prune_->factor(),
+                                         *resolved_best_));
+      } else if (done.result.status == CandidateStatus::kPruned) {
+        throw std::logic_error(fmt::format(
+            "evaluation {} stopped early but never exceeded its bound (a worker started it with "
+            "a bound below F x the best before it)",
+            c.id));
+      } else {
+        records.push_back(ToRecord(done, c, values[resolved_]));
+      }
+      UpdateBest(resolved_best_, records.back());
+      finished.erase(it);
+    }
+    return records;
+  }
+
   // Evaluates the batch (reusing what the store holds), tells the longest
   // id prefix that has results. False when the failure policy aborted.
   bool RunBatch(const std::vector<search::Candidate>& batch) {
     std::map<int64_t, EvaluationRecord> results;
+    std::map<int64_t, FinishedCandidate> finished;  // pruning: not yet recorded
     std::map<int64_t, size_t> index_of;
     std::vector<PendingCandidate> pending;
     std::vector<ParameterValues> values(batch.size());
@@ -268,6 +359,7 @@ class Run {
               "now; the spec or the program changed since it was recorded",
               store_.path().string(), spec_.name, c.id));
         }
+        if (prune_ && it->second.ok) prune_->AddCompleted(c.id, it->second.score);
         results.emplace(c.id, std::move(it->second));
         reusable_.erase(it);
         ++summary_.reused;
@@ -280,21 +372,37 @@ class Run {
         spec_.failure_policy.mode == FailureMode::kRetry ? 1 + spec_.failure_policy.max_retries : 1;
     running_ = 0;
     running_failed_ = 0;
+    running_pruned_ = 0;
+    resolved_ = 0;
+    resolved_best_ = best_;
     evaluator_.Evaluate(
-        pending, max_attempts, [this] { return ShouldStop(); },
+        pending, max_attempts, prune_.get(), [this] { return ShouldStop(); },
         [&](std::vector<FinishedCandidate>&& done) {
-          if (!done.empty()) {
-            std::vector<EvaluationRecord> records;
+          std::vector<EvaluationRecord> records;
+          if (prune_) {
+            // Recorded once decided: in id order, as their bounds become exact.
+            for (FinishedCandidate& f : done) {
+              prune_->AddFinished(f.id, f.result);
+              const int64_t id = f.id;
+              finished.emplace(id, std::move(f));
+            }
+            summary_.evaluated_now += static_cast<int64_t>(done.size());
+            records = ResolvePruning(batch, values, results, finished);
+          } else {
+            // Recorded as they finish.
             records.reserve(done.size());
             for (const FinishedCandidate& f : done) {
               const size_t i = index_of.at(f.id);
               records.push_back(ToRecord(f, batch[i], values[i]));
             }
-            store_.RecordEvaluations(job_, records);
             summary_.evaluated_now += static_cast<int64_t>(records.size());
+          }
+          if (!records.empty()) {
+            store_.RecordEvaluations(job_, records);
             running_ += static_cast<int64_t>(records.size());
             for (EvaluationRecord& rec : records) {
-              if (!rec.ok) ++running_failed_;
+              if (Failed(rec)) ++running_failed_;
+              if (rec.pruned) ++running_pruned_;
               UpdateBest(provisional_best_, rec);
               const int64_t id = rec.id;
               results.emplace(id, std::move(rec));
@@ -305,6 +413,9 @@ class Run {
         control_.tick_s);
     running_ = 0;
     running_failed_ = 0;
+    running_pruned_ = 0;
+    // Pruning: what finished after a candidate that never ran (stopped) is
+    // dropped unrecorded, to be simulated again on resume.
 
     // Tell in id order, up to the first candidate without a result.
     std::vector<search::Evaluation> told;
@@ -316,7 +427,8 @@ class Run {
       const EvaluationRecord& rec = it->second;
       told.push_back(ToTold(rec, spec_.failure_policy));
       UpdateBest(best_, rec);
-      if (!rec.ok) ++failed_;
+      if (Failed(rec)) ++failed_;
+      if (rec.pruned) ++pruned_;
       if (spec_.failure_policy.abort_after > 0 && failed_ >= spec_.failure_policy.abort_after) {
         aborted = true;
         cut_after = c.id;
@@ -380,6 +492,7 @@ class Run {
     summary_.stop_reason = stop_reason_;
     summary_.evaluations = told_;
     summary_.failed = failed_;
+    summary_.pruned = pruned_;
     summary_.best = best_;
     summary_.seconds = Since(start_);
     summary_.job_seconds = previous_seconds_ + summary_.seconds;
@@ -396,6 +509,7 @@ class Run {
     p.evaluations = told_;
     p.budget = spec_.budget.evaluations;
     p.failed = failed_ + running_failed_;
+    p.pruned = pruned_ + running_pruned_;
     p.evaluated_now = summary_.evaluated_now;
     p.running = running_;
     const std::optional<EvaluationRecord>& best = provisional_best_ ? provisional_best_ : best_;
@@ -418,12 +532,19 @@ class Run {
   search::CheckedOptimizer optimizer_;
   const Clock::time_point start_;
   Clock::time_point last_checkpoint_time_;
+  std::unique_ptr<PruneBounds> prune_;  // null: no pruning
 
   int64_t told_ = 0;
   int64_t failed_ = 0;
+  int64_t pruned_ = 0;
   int64_t told_at_checkpoint_ = 0;
   int64_t running_ = 0;
   int64_t running_failed_ = 0;  // failed among those running_
+  int64_t running_pruned_ = 0;  // pruned among those running_
+  // Pruning, in the current batch: candidates [0, resolved_) are recorded
+  // (or reused); resolved_best_ is the best among the history before it.
+  size_t resolved_ = 0;
+  std::optional<EvaluationRecord> resolved_best_;
   double previous_seconds_ = 0.0;
   std::optional<EvaluationRecord> best_;
   std::optional<EvaluationRecord> provisional_best_;  // includes the batch in flight

@@ -13,13 +13,16 @@ namespace calib {
 namespace {
 
 // Version 1: jobs, evaluations, checkpoints. Version 2 adds job_locks and
-// job_inputs, version 3 job_runs and job_queue; an older store is migrated
-// when opened for writing and read as it is (no locks, inputs, runs or
-// queue) when opened read-only.
-constexpr int kSchemaVersion = 3;
+// job_inputs, version 3 job_runs and job_queue, version 4 pruned
+// evaluations; an older store is migrated when opened for writing and read
+// as it is (no locks, inputs, runs, queue or pruned evaluations) when opened
+// read-only.
+constexpr int kSchemaVersion = 4;
 // PRAGMA application_id: 'CALB', so a foreign SQLite file is recognised.
 constexpr int64_t kApplicationId = 0x43414C42;
 
+// Version 1 without its evaluations table: a new store makes that in its
+// newest form (kEvaluationsTable).
 constexpr const char* kSchema = R"sql(
 CREATE TABLE jobs(
   id INTEGER PRIMARY KEY,
@@ -31,26 +34,6 @@ CREATE TABLE jobs(
   stop_reason TEXT NOT NULL DEFAULT '',
   result_json TEXT
 );
-CREATE TABLE evaluations(
-  job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
-  id INTEGER NOT NULL,
-  parameters_json TEXT NOT NULL,
-  x_json TEXT NOT NULL,
-  status TEXT NOT NULL CHECK (status IN ('ok', 'failed')),
-  score REAL,
-  mean_iou REAL,
-  iou_min REAL,
-  iou_max REAL,
-  failure_frame INTEGER NOT NULL,
-  reason TEXT NOT NULL,
-  eval_time_s REAL NOT NULL,
-  worker TEXT NOT NULL,
-  attempt INTEGER NOT NULL,
-  detail_json TEXT,
-  recorded_unix_s REAL NOT NULL,
-  PRIMARY KEY (job_id, id)
-) WITHOUT ROWID;
-CREATE INDEX evaluations_by_score ON evaluations(job_id, status, score, id);
 CREATE TABLE checkpoints(
   job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
   sequence INTEGER NOT NULL,
@@ -107,9 +90,58 @@ CREATE TABLE job_queue(
 );
 )sql";
 
+// The evaluations table as version 4 has it; {} is its name. Versions 1 to
+// 3 had no pruned_recording and pruned_frame, and a status only 'ok' or
+// 'failed'.
+constexpr const char* kEvaluationsTable = R"sql(
+CREATE TABLE {}(
+  job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+  id INTEGER NOT NULL,
+  parameters_json TEXT NOT NULL,
+  x_json TEXT NOT NULL,
+  status TEXT NOT NULL CHECK (status IN ('ok', 'failed', 'pruned')),
+  score REAL,
+  mean_iou REAL,
+  iou_min REAL,
+  iou_max REAL,
+  failure_frame INTEGER NOT NULL,
+  pruned_recording INTEGER NOT NULL DEFAULT -1,
+  pruned_frame INTEGER NOT NULL DEFAULT -1,
+  reason TEXT NOT NULL,
+  eval_time_s REAL NOT NULL,
+  worker TEXT NOT NULL,
+  attempt INTEGER NOT NULL,
+  detail_json TEXT,
+  recorded_unix_s REAL NOT NULL,
+  PRIMARY KEY (job_id, id)
+) WITHOUT ROWID;
+)sql";
+constexpr const char* kEvaluationsIndex =
+    "CREATE INDEX evaluations_by_score ON evaluations(job_id, status, score, id);";
+
+// What version 4 changes in version 3: an evaluation may be pruned
+// (jobs/pruning.h), with the recording and frame it was pruned at. SQLite
+// cannot change a CHECK constraint in place, so the evaluations are copied
+// into a table of the new form (kEvaluationsTable named evaluations_v4),
+// which then takes the old one's place.
+constexpr const char* kMigrateEvaluationsTo4 = R"sql(
+INSERT INTO evaluations_v4(job_id, id, parameters_json, x_json, status, score, mean_iou, iou_min,
+    iou_max, failure_frame, reason, eval_time_s, worker, attempt, detail_json, recorded_unix_s)
+  SELECT job_id, id, parameters_json, x_json, status, score, mean_iou, iou_min, iou_max,
+    failure_frame, reason, eval_time_s, worker, attempt, detail_json, recorded_unix_s
+  FROM evaluations;
+DROP TABLE evaluations;
+ALTER TABLE evaluations_v4 RENAME TO evaluations;
+)sql";
+
 constexpr const char* kEvaluationColumns =
     "id, parameters_json, x_json, status, score, mean_iou, iou_min, iou_max, failure_frame, "
-    "reason, eval_time_s, worker, attempt, detail_json, recorded_unix_s";
+    "pruned_recording, pruned_frame, reason, eval_time_s, worker, attempt, detail_json, "
+    "recorded_unix_s";
+// The same read from a store before version 4 (opened read-only).
+constexpr const char* kEvaluationColumnsBefore4 =
+    "id, parameters_json, x_json, status, score, mean_iou, iou_min, iou_max, failure_frame, "
+    "-1, -1, reason, eval_time_s, worker, attempt, detail_json, recorded_unix_s";
 
 constexpr const char* kJobColumns =
     "id, name, spec_json, created_unix_s, updated_unix_s, status, stop_reason, result_json";
@@ -168,6 +200,10 @@ struct ResultStore::Impl {
 
   void OpenSchema();
   void Migrate(int64_t from);
+  // The columns ReadEvaluation reads, as this store's version has them.
+  const char* EvaluationColumns() const {
+    return schema_version >= 4 ? kEvaluationColumns : kEvaluationColumnsBefore4;
+  }
   void RequireJob(int64_t job, const std::string& operation);
   JobInfo ReadJob(const sqlite::Statement& s, const std::string& operation);
   EvaluationRecord ReadEvaluation(const sqlite::Statement& s, int64_t job);
@@ -205,6 +241,8 @@ void ResultStore::Impl::OpenSchema() {
     // Another process may have created it between the check and the lock.
     if (std::stoll(db.QueryText("PRAGMA user_version", "create schema")) == 0) {
       db.Exec(kSchema, "create schema");
+      db.Exec(fmt::format(fmt::runtime(kEvaluationsTable), "evaluations"), "create schema");
+      db.Exec(kEvaluationsIndex, "create schema");
       db.Exec(kSchemaVersion2, "create schema");
       db.Exec(kSchemaVersion3, "create schema");
       db.Exec(fmt::format("PRAGMA application_id={}; PRAGMA user_version={}", kApplicationId,
@@ -233,6 +271,11 @@ void ResultStore::Impl::Migrate(int64_t from) {
   const int64_t now = std::stoll(db.QueryText("PRAGMA user_version", op));
   if (now < 2) db.Exec(kSchemaVersion2, op);
   if (now < 3) db.Exec(kSchemaVersion3, op);
+  if (now < 4) {
+    db.Exec(fmt::format(fmt::runtime(kEvaluationsTable), "evaluations_v4"), op);
+    db.Exec(kMigrateEvaluationsTo4, op);
+    db.Exec(kEvaluationsIndex, op);
+  }
   if (now < kSchemaVersion) db.Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion), op);
   tx.Commit();
   schema_version = kSchemaVersion;
@@ -271,25 +314,29 @@ EvaluationRecord ResultStore::Impl::ReadEvaluation(const sqlite::Statement& s, i
   } catch (const nlohmann::json::exception& e) {
     throw StoreError(fmt::format("{}: {}: {}", db.path().string(), what, e.what()));
   }
-  r.ok = s.Text(3) == "ok";
+  const std::string status = s.Text(3);
+  r.ok = status == "ok";
+  r.pruned = status == "pruned";
   r.score = s.Double(4);
   r.mean_iou = s.Double(5);
   r.iou_min = s.Double(6);
   r.iou_max = s.Double(7);
   r.failure_frame = static_cast<int>(s.Int(8));
-  r.reason = s.Text(9);
-  r.eval_time_s = s.Double(10);
-  r.worker = s.Text(11);
-  r.attempt = static_cast<int>(s.Int(12));
-  if (!s.IsNull(13)) r.detail = ParseStoredJson(db, s.Text(13), what);
-  r.recorded_unix_s = s.Double(14);
+  r.pruned_recording = static_cast<int>(s.Int(9));
+  r.pruned_frame = static_cast<int>(s.Int(10));
+  r.reason = s.Text(11);
+  r.eval_time_s = s.Double(12);
+  r.worker = s.Text(13);
+  r.attempt = static_cast<int>(s.Int(14));
+  if (!s.IsNull(15)) r.detail = ParseStoredJson(db, s.Text(15), what);
+  r.recorded_unix_s = s.Double(16);
   return r;
 }
 
 std::vector<EvaluationRecord> ResultStore::Impl::ReadEvaluations(int64_t job, int64_t first_id) {
   auto s = db.Prepare(fmt::format("SELECT {} FROM evaluations WHERE job_id = ?1 AND id >= ?2 "
                                   "ORDER BY id",
-                                  kEvaluationColumns),
+                                  EvaluationColumns()),
                       "read evaluations");
   s.Bind(1, job).Bind(2, first_id);
   std::vector<EvaluationRecord> out;
@@ -555,22 +602,23 @@ void ResultStore::RecordEvaluations(int64_t job, std::span<const EvaluationRecor
   const double now = NowUnixSeconds();
   const std::string sql = fmt::format(
       "INSERT INTO evaluations(job_id, {}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, "
-      "?12, ?13, ?14, ?15, ?16)",
+      "?12, ?13, ?14, ?15, ?16, ?17, ?18)",
       kEvaluationColumns);
   for (const EvaluationRecord& r : records) {
     auto s = impl_->db.Prepare(sql, op);
     const nlohmann::json params(r.parameters);
     const nlohmann::json x(r.x);
     s.Bind(1, job).Bind(2, r.id).Bind(3, params.dump()).Bind(4, x.dump());
-    s.Bind(5, r.ok ? "ok" : "failed").Bind(6, r.score).Bind(7, r.mean_iou);
-    s.Bind(8, r.iou_min).Bind(9, r.iou_max).Bind(10, r.failure_frame).Bind(11, r.reason);
-    s.Bind(12, r.eval_time_s).Bind(13, r.worker).Bind(14, r.attempt);
+    s.Bind(5, r.status()).Bind(6, r.score).Bind(7, r.mean_iou);
+    s.Bind(8, r.iou_min).Bind(9, r.iou_max).Bind(10, r.failure_frame);
+    s.Bind(11, r.pruned_recording).Bind(12, r.pruned_frame).Bind(13, r.reason);
+    s.Bind(14, r.eval_time_s).Bind(15, r.worker).Bind(16, r.attempt);
     if (r.detail.is_null()) {
-      s.BindNull(15);
+      s.BindNull(17);
     } else {
-      s.Bind(15, r.detail.dump());
+      s.Bind(17, r.detail.dump());
     }
-    s.Bind(16, now);
+    s.Bind(18, now);
     try {
       s.Run();
     } catch (const StoreError&) {
@@ -594,7 +642,8 @@ std::vector<EvaluationRecord> ResultStore::EvaluationsFrom(int64_t job, int64_t 
 
 std::optional<EvaluationRecord> ResultStore::Evaluation(int64_t job, int64_t id) const {
   auto s = impl_->db.Prepare(
-      fmt::format("SELECT {} FROM evaluations WHERE job_id = ?1 AND id = ?2", kEvaluationColumns),
+      fmt::format("SELECT {} FROM evaluations WHERE job_id = ?1 AND id = ?2",
+                  impl_->EvaluationColumns()),
       "read evaluation");
   s.Bind(1, job).Bind(2, id);
   if (!s.Step()) return std::nullopt;
@@ -623,7 +672,7 @@ std::optional<EvaluationRecord> ResultStore::Best(int64_t job) const {
   auto s = impl_->db.Prepare(fmt::format("SELECT {} FROM evaluations WHERE job_id = ?1 AND "
                                          "status = 'ok' AND score IS NOT NULL ORDER BY score, id "
                                          "LIMIT 1",
-                                         kEvaluationColumns),
+                                         impl_->EvaluationColumns()),
                              "read best evaluation");
   s.Bind(1, job);
   if (!s.Step()) return std::nullopt;
@@ -728,19 +777,21 @@ JobSummary ResultStore::Summary(int64_t job) const {
   JobSummary out;
   {
     auto s = impl_->db.Prepare(
-        "SELECT count(*), coalesce(sum(status = 'ok'), 0), coalesce(avg(eval_time_s), 0), "
-        "coalesce(sum(eval_time_s), 0), coalesce(min(recorded_unix_s), 0), "
-        "coalesce(max(recorded_unix_s), 0) FROM evaluations WHERE job_id = ?1",
+        "SELECT count(*), coalesce(sum(status = 'ok'), 0), coalesce(sum(status = 'pruned'), 0), "
+        "coalesce(avg(eval_time_s), 0), coalesce(sum(eval_time_s), 0), "
+        "coalesce(min(recorded_unix_s), 0), coalesce(max(recorded_unix_s), 0) "
+        "FROM evaluations WHERE job_id = ?1",
         op);
     s.Bind(1, job);
     s.Step();
     out.evaluations = s.Int(0);
     out.ok = s.Int(1);
-    out.failed = out.evaluations - out.ok;
-    out.mean_eval_time_s = s.Double(2);
-    out.total_eval_time_s = s.Double(3);
-    out.first_recorded_unix_s = s.Double(4);
-    out.last_recorded_unix_s = s.Double(5);
+    out.pruned = s.Int(2);
+    out.failed = out.evaluations - out.ok - out.pruned;
+    out.mean_eval_time_s = s.Double(3);
+    out.total_eval_time_s = s.Double(4);
+    out.first_recorded_unix_s = s.Double(5);
+    out.last_recorded_unix_s = s.Double(6);
   }
   out.best = Best(job);
   out.checkpoints = CheckpointCount(job);

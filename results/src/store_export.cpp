@@ -33,9 +33,9 @@ std::string UtcTime(double unix_s) {
 }
 
 nlohmann::json ToJson(const EvaluationRecord& r) {
-  return {
+  nlohmann::json out = {
       {"id", r.id},
-      {"status", r.ok ? "ok" : "failed"},
+      {"status", r.status()},
       {"score", JsonNumber(r.score)},
       {"mean_iou", JsonNumber(r.mean_iou)},
       {"iou_min", JsonNumber(r.iou_min)},
@@ -50,6 +50,11 @@ nlohmann::json ToJson(const EvaluationRecord& r) {
       {"detail", r.detail},
       {"recorded_unix_s", JsonNumber(r.recorded_unix_s)},
   };
+  if (r.pruned) {
+    out["pruned_recording"] = r.pruned_recording;
+    out["pruned_frame"] = r.pruned_frame;
+  }
+  return out;
 }
 
 nlohmann::json ToJson(const JobSummary& s) {
@@ -57,6 +62,7 @@ nlohmann::json ToJson(const JobSummary& s) {
       {"evaluations", s.evaluations},
       {"ok", s.ok},
       {"failed", s.failed},
+      {"pruned", s.pruned},
       {"mean_eval_time_s", s.mean_eval_time_s},
       {"total_eval_time_s", s.total_eval_time_s},
       {"first_recorded_unix_s", s.first_recorded_unix_s},
@@ -76,7 +82,9 @@ nlohmann::json ToJson(const JobSummary& s) {
 }  // namespace
 
 std::string JobSummary::Report() const {
-  std::string out = fmt::format("evaluations: {} ({} ok, {} failed)\n", evaluations, ok, failed);
+  // Pruned ones are named only when there are (a job without pruning reads as before).
+  std::string out = fmt::format("evaluations: {} ({} ok, {} failed{})\n", evaluations, ok, failed,
+                                pruned > 0 ? fmt::format(", {} pruned", pruned) : "");
   if (best) {
     out += fmt::format("best: score {} (candidate {}), mean IoU {:.4f}\n", best->score, best->id,
                        best->mean_iou);
@@ -106,16 +114,27 @@ void ResultStore::ExportCsv(int64_t job, const std::filesystem::path& path) cons
     throw StoreError(fmt::format("{}: export CSV of job {}: cannot open {} for writing",
                                  this->path().string(), job, path.string()));
   }
-  std::vector<std::string> header = {"id",     "status",      "score",  "mean_iou",
-                                     "iou_min", "iou_max",    "failure_frame", "reason",
-                                     "eval_time_s", "worker", "attempt"};
+  std::vector<std::string> header = {"id",          "status",           "score",
+                                     "mean_iou",    "iou_min",          "iou_max",
+                                     "failure_frame", "pruned_recording", "pruned_frame",
+                                     "reason",      "eval_time_s",      "worker",
+                                     "attempt"};
   header.insert(header.end(), names.begin(), names.end());
   WriteRecord(out.get(), header);
   for (const auto& r : records) {
-    std::vector<std::string> row = {std::to_string(r.id), r.ok ? "ok" : "failed", Number(r.score),
-                                    Number(r.mean_iou), Number(r.iou_min), Number(r.iou_max),
-                                    std::to_string(r.failure_frame), r.reason, Number(r.eval_time_s),
-                                    r.worker, std::to_string(r.attempt)};
+    std::vector<std::string> row = {std::to_string(r.id),
+                                    r.status(),
+                                    Number(r.score),
+                                    Number(r.mean_iou),
+                                    Number(r.iou_min),
+                                    Number(r.iou_max),
+                                    std::to_string(r.failure_frame),
+                                    std::to_string(r.pruned_recording),
+                                    std::to_string(r.pruned_frame),
+                                    r.reason,
+                                    Number(r.eval_time_s),
+                                    r.worker,
+                                    std::to_string(r.attempt)};
     for (const auto& name : names) {
       const auto it = r.parameters.find(name);
       row.push_back(it == r.parameters.end() ? std::string() : Number(it->second));

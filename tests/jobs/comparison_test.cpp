@@ -67,7 +67,8 @@ int64_t g_kill_at = 0;
 class AnalyticWorker final : public ObjectiveWorker {
  public:
   AnalyticWorker(SearchSpace space, AnalyticFunction f) : space_(std::move(space)), f_(std::move(f)) {}
-  ObjectiveResult Evaluate(const ParameterValues& values) override {
+  using ObjectiveWorker::Evaluate;
+  ObjectiveResult Evaluate(const ParameterValues& values, const EarlyStop& /*stop*/) override {
     if (g_kill_at > 0 && ++g_evaluations == g_kill_at) std::raise(SIGKILL);
     ObjectiveResult r;
     r.status = CandidateStatus::kOk;

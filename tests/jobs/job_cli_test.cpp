@@ -272,17 +272,22 @@ TEST_F(JobCli, CorruptedCheckpointIsReportedAndTheJobFallsBackPastIt) {
   testing::ExpectSameHistory(ReferenceHistory(), History(db), "resumed past a corrupted checkpoint");
 }
 
+// `mpirun -np 3` (on one machine without a network) of calib with `args`.
+std::vector<std::string> ThreeMpiRanks(const std::vector<std::string>& args) {
+  std::vector<std::string> command = {CALIB_MPIEXEC, "--allow-run-as-root", "--oversubscribe",
+                                      "--bind-to", "none", "--mca", "btl", "self,vader", "--mca",
+                                      "btl_vader_single_copy_mechanism", "none", "-np", "3"};
+  command.insert(command.end(), args.begin(), args.end());
+  return command;
+}
+
 TEST_F(JobCli, ThreeMpiRanksGiveTheHistoryOfThreads) {
   const fs::path dir = testing::ScratchDir("job_cli_mpi");
   const fs::path db = dir / "mpi.sqlite";
-  std::vector<std::string> args = {CALIB_MPIEXEC, "--allow-run-as-root", "--oversubscribe",
-                                   "--bind-to", "none", "--mca", "btl", "self,vader", "--mca",
-                                   "btl_vader_single_copy_mechanism", "none", "-np", "3"};
-  for (const std::string& a : Args({"run", spec_->string(), "--store", db.string(),
-                                    "--no-report", "--progress", "log"})) {
-    args.push_back(a);
-  }
-  const testing::ProcessResult r = testing::RunProcess(args, dir, {}, 600.0);
+  const testing::ProcessResult r = testing::RunProcess(
+      ThreeMpiRanks(Args({"run", spec_->string(), "--store", db.string(), "--no-report",
+                          "--progress", "log"})),
+      dir, {}, 600.0);
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_CONTAINS(r.err, "MPI: manager and 2 worker ranks");
   EXPECT_CONTAINS(r.out, "status: finished");
@@ -292,6 +297,35 @@ TEST_F(JobCli, ThreeMpiRanksGiveTheHistoryOfThreads) {
   for (const auto& e : history) workers.insert(e.worker);
   EXPECT_EQ(workers, (std::set<std::string>{"rank 1", "rank 2"}))
       << "the manager evaluates nothing; both workers do";
+}
+
+// With pruning the workers get their bounds in the kWork message and send
+// the trace of the score so far back: the history is still that of threads.
+TEST_F(JobCli, ThreeMpiRanksGiveTheHistoryOfThreadsWhenPruning) {
+  const fs::path dir = testing::ScratchDir("job_cli_mpi_pruned");
+  std::string yaml = JobYaml("cli_pruned");
+  const std::string budget = "budget: {evaluations: 64}";
+  ASSERT_NE(yaml.find(budget), std::string::npos);
+  yaml.replace(yaml.find(budget), budget.size(), "budget: {evaluations: 32, prune_factor: 1.1}");
+  const fs::path spec = dir / "cli_pruned.yaml";
+  std::ofstream(spec) << yaml;
+  const testing::ProcessResult threads = testing::RunProcess(
+      Args({"run", spec.string(), "--store", (dir / "threads.sqlite").string(), "--no-report"}),
+      dir);
+  ASSERT_EQ(threads.exit_code, 0) << threads.out << threads.err;
+  const testing::ProcessResult mpi = testing::RunProcess(
+      ThreeMpiRanks(Args({"run", spec.string(), "--store", (dir / "mpi.sqlite").string(),
+                          "--no-report", "--progress", "log"})),
+      dir, {}, 600.0);
+  ASSERT_EQ(mpi.exit_code, 0) << mpi.out << mpi.err;
+  const std::vector<EvaluationRecord> reference = History(dir / "threads.sqlite", "cli_pruned");
+  ASSERT_EQ(reference.size(), 32u);
+  int pruned = 0;
+  for (const auto& e : reference) pruned += e.pruned ? 1 : 0;
+  EXPECT_GT(pruned, 0) << "the test needs pruned evaluations";
+  EXPECT_CONTAINS(threads.out, fmt::format("{} pruned", pruned));
+  testing::ExpectSameHistory(reference, History(dir / "mpi.sqlite", "cli_pruned"),
+                             "3 MPI ranks vs 2 threads, pruning");
 }
 
 TEST_F(JobCli, ResultsPrintsAndExportsAndBestFeedsSimulate) {

@@ -2,7 +2,7 @@
 //  - a finished job resumed with a larger budget ends with the history of a
 //    run with that budget from the start (random, cmaes, genetic), and the
 //    optimisers that lay out their search for the budget refuse, naming it;
-//  - a budget may not shrink on resume;
+//  - a budget may not shrink on resume, nor the prune factor change;
 //  - `fresh` deletes the job and starts over, refused while a live process
 //    holds it;
 //  - every run records the program version, host, process and time;
@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <optional>
 
 namespace calib {
 namespace {
@@ -124,6 +125,28 @@ TEST(JobManagement, ABudgetCannotShrinkOnResume) {
   } catch (const std::invalid_argument& e) {
     EXPECT_CONTAINS(e.what(), "/budget/evaluations");
   }
+}
+
+// Pruning decides the history: its factor may not change, appear or go on
+// resume; the same factor resumes.
+TEST(JobManagement, ThePruneFactorCannotChangeOnResume) {
+  const fs::path dir = testing::ScratchDir("prune_factor_refused");
+  JobSpec spec = ManagedSpec("{name: random}", 20, dir / "r.sqlite");
+  spec.budget.prune_factor = 2.0;
+  JobCommandOptions first_batch = SyntheticOptions();
+  first_batch.wall_time_s = 1e-9;
+  ASSERT_EQ(RunJob(spec, JobStart::kRun, first_batch).run.status, JobStatus::kStopped);
+  for (const std::optional<double> factor : {std::optional<double>(3.0), std::optional<double>()}) {
+    JobSpec changed = spec;
+    changed.budget.prune_factor = factor;
+    try {
+      RunJob(changed, JobStart::kResume, SyntheticOptions());
+      ADD_FAILURE() << "prune factor " << factor.value_or(0.0) << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_CONTAINS(e.what(), "/budget/prune_factor");
+    }
+  }
+  EXPECT_EQ(RunJob(spec, JobStart::kResume, SyntheticOptions()).run.status, JobStatus::kFinished);
 }
 
 TEST(JobManagement, FreshStartsOverAndRecordsEveryRun) {

@@ -12,6 +12,8 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
+#include <utility>
 
 namespace calib {
 namespace {
@@ -41,7 +43,7 @@ parameters:
 optimizer:
   name: cmaes
   settings: {population: 6, initial_sigma: 0.25}
-budget: {evaluations: 120, wall_time_s: 3600}
+budget: {evaluations: 120, wall_time_s: 3600, prune_factor: 2.5}
 seed: 42
 threads: 2
 processes: 3
@@ -104,6 +106,7 @@ TEST(JobSpec, ValidSpecIsReadCompletely) {
   EXPECT_EQ(spec.optimizer.settings["max_evals"], 120) << "the budget fills the optimiser's own";
   EXPECT_EQ(spec.budget.evaluations, 120);
   EXPECT_EQ(*spec.budget.wall_time_s, 3600.0);
+  EXPECT_EQ(*spec.budget.prune_factor, 2.5);
   EXPECT_EQ(spec.seed, 42u);
   EXPECT_EQ(spec.threads, 2);
   EXPECT_EQ(spec.processes, 3);
@@ -484,6 +487,19 @@ TEST(JobSpec, BadBudgetIsNamed) {
   EXPECT_CONTAINS(m, "budget.evaluations = '0': must be >= 1");
   const std::string w = ErrorOf([](YAML::Node& r) { r["budget"]["wall_time_s"] = -5; });
   EXPECT_CONTAINS(w, "budget.wall_time_s = '-5': must be > 0");
+}
+
+TEST(JobSpec, BadPruneFactorIsNamed) {
+  for (const auto& [factor, shown] : {std::pair{1.0, "1"}, {0.5, "0.5"}, {-2.0, "-2"}}) {
+    const std::string m = ErrorOf([&](YAML::Node& r) { r["budget"]["prune_factor"] = factor; });
+    EXPECT_CONTAINS(m, "job.yaml: budget.prune_factor = '" + std::string(shown) + "': must be > 1");
+  }
+  const std::string text = ErrorOf([](YAML::Node& r) { r["budget"]["prune_factor"] = "twice"; });
+  EXPECT_CONTAINS(text, "budget.prune_factor = 'twice': expected a number");
+  const std::string nan = ErrorOf([](YAML::Node& r) {
+    r["budget"]["prune_factor"] = std::numeric_limits<double>::quiet_NaN();
+  });
+  EXPECT_CONTAINS(nan, "budget.prune_factor = '.nan': must be finite");
 }
 
 TEST(JobSpec, MissingRecordingFolderIsNamed) {

@@ -1,11 +1,14 @@
 #include "jobs/job_test_support.h"
 
+#include "calib/jobs/batch_evaluator.h"
+
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <numbers>
 #include <stdexcept>
 #include <thread>
@@ -17,7 +20,8 @@ class SyntheticWorker final : public ObjectiveWorker {
  public:
   explicit SyntheticWorker(SyntheticOptions options) : options_(options) {}
 
-  ObjectiveResult Evaluate(const ParameterValues& values) override {
+  using ObjectiveWorker::Evaluate;
+  ObjectiveResult Evaluate(const ParameterValues& values, const EarlyStop& stop) override {
     if (options_.sleep_s > 0.0) {
       std::this_thread::sleep_for(std::chrono::duration<double>(options_.sleep_s));
     }
@@ -37,7 +41,21 @@ class SyntheticWorker final : public ObjectiveWorker {
     r.iou.min = 1.0 / (1.0 + 1.5 * f);
     r.iou.max = 1.0 / (1.0 + 0.5 * f);
     const double tau = values.at("tau");
-    if (tau > options_.fail_above_tau) {
+    const bool fails = tau > options_.fail_above_tau;
+    // Every frame scores f: the score so far after frame k is (k + 1) f.
+    const int frames = fails ? 3 : 10;
+    if (stop.trace) r.recording_frames = {10};
+    for (int k = 0; k < frames; ++k) {
+      const double so_far = (k + 1) * f;
+      if (stop.trace) r.trace.push_back(so_far);
+      if (so_far > stop.stop_above) {
+        r.status = CandidateStatus::kPruned;
+        r.score = so_far;
+        r.iou.frames_scored = k + 1;
+        return r;
+      }
+    }
+    if (fails) {
       r.status = CandidateStatus::kFailed;
       r.score = 3.0 * f;  // the frames before the failure
       r.iou.frames_scored = 3;
@@ -138,16 +156,69 @@ void ExpectSameHistory(const std::vector<EvaluationRecord>& expected,
     }
     EXPECT_EQ(e.parameters, a.parameters) << where;
     EXPECT_EQ(e.ok, a.ok) << where;
+    EXPECT_EQ(e.pruned, a.pruned) << where;
     EXPECT_TRUE(same_bits(e.score, a.score)) << where << ": score " << e.score << " != " << a.score;
     EXPECT_TRUE(same_bits(e.mean_iou, a.mean_iou)) << where;
     EXPECT_TRUE(same_bits(e.iou_min, a.iou_min)) << where;
     EXPECT_TRUE(same_bits(e.iou_max, a.iou_max)) << where;
     EXPECT_EQ(e.failure_frame, a.failure_frame) << where;
+    EXPECT_EQ(e.pruned_recording, a.pruned_recording) << where;
+    EXPECT_EQ(e.pruned_frame, a.pruned_frame) << where;
     EXPECT_EQ(e.reason, a.reason) << where;
     EXPECT_EQ(e.attempt, a.attempt) << where;
     EXPECT_EQ(e.detail, a.detail) << where;
     if (::testing::Test::HasFailure()) return;  // one evaluation's worth of messages
   }
+}
+
+JobRun RunJobIn(const JobSpec& spec, const std::filesystem::path& db, const Objective& objective,
+                int threads, RunControl control, RunObserver* observer) {
+  ResultStore store(db);
+  const std::optional<JobInfo> existing = store.FindJob(spec.name);
+  const int64_t job = existing ? existing->id : store.CreateJob(spec.name, ToJson(spec));
+  ThreadBatchEvaluator evaluator(objective, threads);
+  JobRun run;
+  run.summary = RunCalibration(spec, store, job, evaluator, control, observer);
+  run.history = store.Evaluations(job);
+  run.best = store.Best(job);
+  run.info = store.Job(job);
+  return run;
+}
+
+void ExpectSameBest(const JobRun& expected, const JobRun& actual, const std::string& what) {
+  ASSERT_EQ(expected.best.has_value(), actual.best.has_value()) << what;
+  if (!expected.best) return;
+  EXPECT_EQ(expected.best->id, actual.best->id) << what;
+  EXPECT_EQ(expected.best->parameters, actual.best->parameters) << what;
+  EXPECT_EQ(expected.best->score, actual.best->score) << what;
+  ASSERT_TRUE(actual.summary.best.has_value()) << what;
+  EXPECT_EQ(actual.summary.best->id, actual.best->id) << what << ": the summary's best is the store's";
+}
+
+void ExpectSameRunAtThreadCountsAndBatchSizes(const JobSpec& spec, const Objective& objective,
+                                              const std::filesystem::path& dir,
+                                              const JobRun& reference) {
+  for (const int threads : {1, 2, 4}) {
+    for (const int batch_size : {3, 64}) {
+      const std::string what = fmt::format("{} threads, batch {}", threads, batch_size);
+      RunControl control;
+      control.batch_size = batch_size;
+      const JobRun run = RunJobIn(spec, dir / fmt::format("t{}_b{}.sqlite", threads, batch_size),
+                                  objective, threads, control);
+      EXPECT_EQ(run.summary.status, reference.summary.status) << what;
+      EXPECT_EQ(run.summary.stop_reason, reference.summary.stop_reason) << what;
+      ExpectSameHistory(reference.history, run.history, what);
+      ExpectSameBest(reference, run, what);
+    }
+  }
+}
+
+RunControl StopAfterPolls(int polls, int batch_size) {
+  RunControl control;
+  control.batch_size = batch_size;
+  auto count = std::make_shared<int>(0);
+  control.interrupted = [count, polls] { return ++*count > polls; };
+  return control;
 }
 
 JobCommandOptions SyntheticJobCommandOptions() {

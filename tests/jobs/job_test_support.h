@@ -5,9 +5,11 @@
 #include "calib/jobs/job_commands.h"
 #include "calib/jobs/job_spec.h"
 #include "calib/jobs/objective.h"
+#include "calib/jobs/runner.h"
 #include "calib/results/store.h"
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,7 +18,9 @@ namespace calib::testing {
 /// A cheap deterministic objective on the base model's parameters: a
 /// Rastrigin-like function of the parameters' log10 distances from a target
 /// (many local minima, one global one), reported as a score with an IoU
-/// summary over 10 "frames".
+/// summary over 10 "frames" of one recording, each scoring a tenth of it
+/// (the score so far after frame k is (k + 1) Score(values)); it stops
+/// early and traces as EarlyStop asks.
 struct SyntheticOptions {
   /// Candidates with tau above this fail (as a simulation that blows up at
   /// frame 3), their reason naming tau.
@@ -66,6 +70,32 @@ std::string SmallPushJobYaml(const std::string& name, const std::string& push_ce
 /// recorded_unix_s) and who evaluated it (worker). `what` labels failures.
 void ExpectSameHistory(const std::vector<EvaluationRecord>& expected,
                        const std::vector<EvaluationRecord>& actual, const std::string& what);
+
+/// What a run (RunJobIn) left in its store.
+struct JobRun {
+  RunSummary summary;
+  std::vector<EvaluationRecord> history;
+  std::optional<EvaluationRecord> best;
+  JobInfo info;
+};
+
+/// Runs (or resumes) `spec` in the store at `db` with `threads` threads.
+JobRun RunJobIn(const JobSpec& spec, const std::filesystem::path& db, const Objective& objective,
+                int threads, RunControl control = {}, RunObserver* observer = nullptr);
+
+/// Expects `actual` to have `expected`'s best evaluation (id, parameters,
+/// score), and its summary to name it.
+void ExpectSameBest(const JobRun& expected, const JobRun& actual, const std::string& what);
+
+/// Runs `spec` at 1, 2 and 4 threads with batches of 3 and of 64 (a store
+/// each in `dir`) and expects every run to end as `reference` did, with its
+/// history and best.
+void ExpectSameRunAtThreadCountsAndBatchSizes(const JobSpec& spec, const Objective& objective,
+                                              const std::filesystem::path& dir,
+                                              const JobRun& reference);
+
+/// Stops the run when the runner has polled `polls` times.
+RunControl StopAfterPolls(int polls, int batch_size);
 
 /// Options for RunJob / ResumeJob that evaluate SyntheticObjective (no
 /// recording is simulated) on one thread, with no report and no progress.

@@ -37,37 +37,10 @@ int64_t JobId(const fs::path& db, const std::string& name) {
   return ResultStore(db).FindJob(name).value().id;
 }
 
-struct JobRun {
-  RunSummary summary;
-  std::vector<EvaluationRecord> history;
-  std::optional<EvaluationRecord> best;
-  JobInfo info;
-};
-
-// Runs (or resumes) `spec` in the store at `db` with `threads` threads.
-JobRun RunJobIn(const JobSpec& spec, const fs::path& db, const Objective& objective, int threads,
-                RunControl control = {}, RunObserver* observer = nullptr) {
-  ResultStore store(db);
-  const std::optional<JobInfo> existing = store.FindJob(spec.name);
-  const int64_t job = existing ? existing->id : store.CreateJob(spec.name, ToJson(spec));
-  ThreadBatchEvaluator evaluator(objective, threads);
-  JobRun run;
-  run.summary = RunCalibration(spec, store, job, evaluator, control, observer);
-  run.history = store.Evaluations(job);
-  run.best = store.Best(job);
-  run.info = store.Job(job);
-  return run;
-}
-
-void ExpectSameBest(const JobRun& expected, const JobRun& actual, const std::string& what) {
-  ASSERT_EQ(expected.best.has_value(), actual.best.has_value()) << what;
-  if (!expected.best) return;
-  EXPECT_EQ(expected.best->id, actual.best->id) << what;
-  EXPECT_EQ(expected.best->parameters, actual.best->parameters) << what;
-  EXPECT_EQ(expected.best->score, actual.best->score) << what;
-  ASSERT_TRUE(actual.summary.best.has_value()) << what;
-  EXPECT_EQ(actual.summary.best->id, actual.best->id) << what << ": the summary's best is the store's";
-}
+using testing::ExpectSameBest;
+using testing::JobRun;
+using testing::RunJobIn;
+using testing::StopAfterPolls;
 
 struct OptimizerCase {
   std::string label;
@@ -90,19 +63,7 @@ TEST_P(RunnerDeterminism, SameHistoryAndBestAtAnyThreadCountAndBatchSize) {
   EXPECT_LE(reference.history.size(), 72u) << "the budget caps the evaluations";
   ASSERT_TRUE(reference.best.has_value());
 
-  for (const int threads : {1, 2, 4}) {
-    for (const int batch_size : {3, 64}) {
-      const std::string what = fmt::format("{} threads, batch {}", threads, batch_size);
-      RunControl control;
-      control.batch_size = batch_size;
-      const JobRun run = RunJobIn(spec, dir / fmt::format("t{}_b{}.sqlite", threads, batch_size),
-                                  objective, threads, control);
-      EXPECT_EQ(run.summary.status, reference.summary.status) << what;
-      EXPECT_EQ(run.summary.stop_reason, reference.summary.stop_reason) << what;
-      testing::ExpectSameHistory(reference.history, run.history, what);
-      ExpectSameBest(reference, run, what);
-    }
-  }
+  testing::ExpectSameRunAtThreadCountsAndBatchSizes(spec, objective, dir, reference);
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -325,15 +286,6 @@ TEST(RunnerFailurePolicy, AbortAfterNCutsTheHistoryAtTheNthFailure) {
   EXPECT_EQ(again.summary.status, JobStatus::kAborted);
   EXPECT_EQ(again.summary.evaluated_now, 0);
   testing::ExpectSameHistory(reference.history, again.history, "resumed after the abort");
-}
-
-// Stops the run when the runner has polled `polls` times.
-RunControl StopAfterPolls(int polls, int batch_size) {
-  RunControl control;
-  control.batch_size = batch_size;
-  auto count = std::make_shared<int>(0);
-  control.interrupted = [count, polls] { return ++*count > polls; };
-  return control;
 }
 
 TEST(RunnerResume, StoppedAndResumedManyTimesGivesTheUninterruptedHistory) {

@@ -1,7 +1,8 @@
 // The results store: schema and WAL mode, bit-exact round trips, the derived
 // best, checkpoints with fallback past corrupted ones, exports that parse
 // back, persistence across reopening, the job lock, input fingerprints, the
-// migration of a version 1 store, and errors naming the database.
+// migration of version 1, 2 and 3 stores, pruned evaluations, and errors
+// naming the database.
 
 #include "calib/results/store.h"
 
@@ -11,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -49,19 +51,36 @@ EvaluationRecord MakeRecord(int64_t id, double score, bool ok = true) {
   return r;
 }
 
+// A pruned evaluation (jobs/pruning.h): its score so far at recording 1,
+// frame 41.
+EvaluationRecord MakePrunedRecord(int64_t id, double score) {
+  EvaluationRecord r = MakeRecord(id, score);
+  r.ok = false;
+  r.pruned = true;
+  r.mean_iou = r.iou_min = r.iou_max = std::numeric_limits<double>::quiet_NaN();
+  r.pruned_recording = 1;
+  r.pruned_frame = 41;
+  r.reason = "pruned at recording 1 frame 41";
+  return r;
+}
+
 void ExpectSame(const EvaluationRecord& a, const EvaluationRecord& b) {
   EXPECT_EQ(a.id, b.id);
   EXPECT_EQ(a.parameters, b.parameters) << "parameters must round-trip bit for bit";
   EXPECT_EQ(a.x, b.x) << "x must round-trip bit for bit";
   EXPECT_EQ(a.ok, b.ok);
+  EXPECT_EQ(a.pruned, b.pruned);
+  EXPECT_EQ(a.pruned_recording, b.pruned_recording);
+  EXPECT_EQ(a.pruned_frame, b.pruned_frame);
   if (std::isnan(a.score)) {
     EXPECT_TRUE(std::isnan(b.score));
   } else {
     EXPECT_EQ(a.score, b.score);
   }
-  EXPECT_EQ(a.mean_iou, b.mean_iou);
-  EXPECT_EQ(a.iou_min, b.iou_min);
-  EXPECT_EQ(a.iou_max, b.iou_max);
+  const auto same = [](double x, double y) { return x == y || (std::isnan(x) && std::isnan(y)); };
+  EXPECT_TRUE(same(a.mean_iou, b.mean_iou)) << a.mean_iou << " != " << b.mean_iou;
+  EXPECT_TRUE(same(a.iou_min, b.iou_min));
+  EXPECT_TRUE(same(a.iou_max, b.iou_max));
   EXPECT_EQ(a.failure_frame, b.failure_frame);
   EXPECT_EQ(a.reason, b.reason);
   EXPECT_EQ(a.eval_time_s, b.eval_time_s);
@@ -528,12 +547,12 @@ TEST(ResultStore, AVersion1StoreIsMigratedWhenOpenedForWriting) {
     EXPECT_TRUE(reader.JobInputs(job).empty());
   }
   ResultStore store(dir / "r.sqlite");
-  EXPECT_EQ(store.SchemaVersion(), 3);
+  EXPECT_EQ(store.SchemaVersion(), 4);
   const int64_t job = store.FindJob("job")->id;
   EXPECT_EQ(store.EvaluationCount(job), 1) << "nothing lost";
   EXPECT_FALSE(store.AcquireJobLock(job, Claim(1, "t"), [](const JobLock&, double) { return false; })
                    .has_value());
-  EXPECT_EQ(ResultStore(dir / "r.sqlite", read_only).SchemaVersion(), 3);
+  EXPECT_EQ(ResultStore(dir / "r.sqlite", read_only).SchemaVersion(), 4);
 }
 
 TEST(ResultStore, AVersion2StoreIsMigratedAndKeepsEverything) {
@@ -557,7 +576,7 @@ TEST(ResultStore, AVersion2StoreIsMigratedAndKeepsEverything) {
     EXPECT_TRUE(reader.JobRuns(reader.FindJob("job")->id).empty()) << "read as it is";
   }
   ResultStore store(dir / "r.sqlite");
-  EXPECT_EQ(store.SchemaVersion(), 3);
+  EXPECT_EQ(store.SchemaVersion(), 4);
   const int64_t job = store.FindJob("job")->id;
   EXPECT_EQ(store.EvaluationCount(job), 2) << "nothing lost";
   EXPECT_EQ(store.Best(job)->id, 1);
@@ -570,6 +589,93 @@ TEST(ResultStore, AVersion2StoreIsMigratedAndKeepsEverything) {
   EXPECT_EQ(runs[0].host, "host-a");
   EXPECT_EQ(runs[0].pid, 42);
   EXPECT_EQ(runs[0].command, "resume");
+}
+
+TEST(ResultStore, AVersion3StoreIsMigratedAndKeepsEveryEvaluationBitExact) {
+  const fs::path dir = testing::ScratchDir("store_v3");
+  const std::vector<EvaluationRecord> records = {MakeRecord(0, 5.0), MakeRecord(1, 0.0, false),
+                                                 MakeRecord(2, 1.0 / 3.0)};
+  {
+    ResultStore store(dir / "r.sqlite");
+    store.RecordEvaluations(store.CreateJob("job", kSpec), records);
+  }
+  // What a version 3 build wrote: evaluations only ok or failed, no pruned
+  // frame.
+  RawSql(dir / "r.sqlite", R"sql(
+CREATE TABLE v3(
+  job_id INTEGER NOT NULL REFERENCES jobs(id) ON DELETE CASCADE, id INTEGER NOT NULL,
+  parameters_json TEXT NOT NULL, x_json TEXT NOT NULL,
+  status TEXT NOT NULL CHECK (status IN ('ok', 'failed')), score REAL, mean_iou REAL,
+  iou_min REAL, iou_max REAL, failure_frame INTEGER NOT NULL, reason TEXT NOT NULL,
+  eval_time_s REAL NOT NULL, worker TEXT NOT NULL, attempt INTEGER NOT NULL, detail_json TEXT,
+  recorded_unix_s REAL NOT NULL, PRIMARY KEY (job_id, id)) WITHOUT ROWID;
+INSERT INTO v3 SELECT job_id, id, parameters_json, x_json, status, score, mean_iou, iou_min,
+  iou_max, failure_frame, reason, eval_time_s, worker, attempt, detail_json, recorded_unix_s
+  FROM evaluations;
+DROP TABLE evaluations;
+ALTER TABLE v3 RENAME TO evaluations;
+CREATE INDEX evaluations_by_score ON evaluations(job_id, status, score, id);
+PRAGMA user_version=3;
+)sql");
+  StoreOptions read_only;
+  read_only.read_only = true;
+  {
+    ResultStore reader(dir / "r.sqlite", read_only);
+    EXPECT_EQ(reader.SchemaVersion(), 3);
+    const std::vector<EvaluationRecord> back = reader.Evaluations(reader.FindJob("job")->id);
+    ASSERT_EQ(back.size(), 3u) << "read as it is";
+    for (size_t i = 0; i < back.size(); ++i) ExpectSame(back[i], records[i]);
+  }
+  ResultStore store(dir / "r.sqlite");
+  EXPECT_EQ(store.SchemaVersion(), 4);
+  const int64_t job = store.FindJob("job")->id;
+  const std::vector<EvaluationRecord> back = store.Evaluations(job);
+  ASSERT_EQ(back.size(), 3u) << "nothing lost";
+  for (size_t i = 0; i < back.size(); ++i) ExpectSame(back[i], records[i]);
+  store.RecordEvaluations(job, std::vector<EvaluationRecord>{MakePrunedRecord(3, 9.0)});
+  ExpectSame(*store.Evaluation(job, 3), MakePrunedRecord(3, 9.0));
+}
+
+TEST(ResultStore, APrunedEvaluationIsNeitherOkNorFailedNorBest) {
+  const fs::path dir = testing::ScratchDir("store_pruned");
+  ResultStore store(dir / "r.sqlite");
+  const int64_t job = store.CreateJob("job", kSpec);
+  const std::vector<EvaluationRecord> records = {MakeRecord(0, 5.0), MakeRecord(1, 0.0, false),
+                                                 MakePrunedRecord(2, 1.0)};
+  store.RecordEvaluations(job, records);
+  const std::vector<EvaluationRecord> back = store.Evaluations(job);
+  ASSERT_EQ(back.size(), 3u);
+  ExpectSame(back[2], records[2]);
+  EXPECT_EQ(std::string(back[2].status()), "pruned");
+  EXPECT_EQ(store.Best(job)->id, 0) << "a pruned score is a lower bound, never the best";
+  const JobSummary summary = store.Summary(job);
+  EXPECT_EQ(summary.ok, 1);
+  EXPECT_EQ(summary.failed, 1);
+  EXPECT_EQ(summary.pruned, 1);
+  EXPECT_CONTAINS(summary.Report(), "evaluations: 3 (1 ok, 1 failed, 1 pruned)");
+
+  store.ExportCsv(job, dir / "e.csv");
+  const Rows rows = ParseCsvFile(dir / "e.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  const auto column = [&](const std::string& name) {
+    return static_cast<size_t>(std::find(rows[0].begin(), rows[0].end(), name) - rows[0].begin());
+  };
+  ASSERT_LT(column("pruned_frame"), rows[0].size());
+  EXPECT_EQ(rows[3][column("status")], "pruned");
+  EXPECT_EQ(rows[3][column("score")], "1");
+  EXPECT_EQ(rows[3][column("pruned_recording")], "1");
+  EXPECT_EQ(rows[3][column("pruned_frame")], "41");
+  EXPECT_EQ(rows[1][column("pruned_frame")], "-1");
+
+  store.ExportJson(job, dir / "e.json");
+  std::ifstream in(dir / "e.json");
+  const nlohmann::json doc = nlohmann::json::parse(in);
+  EXPECT_EQ(doc["summary"]["pruned"], 1);
+  EXPECT_EQ(doc["summary"]["failed"], 1);
+  EXPECT_EQ(doc["evaluations"][2]["status"], "pruned");
+  EXPECT_EQ(doc["evaluations"][2]["pruned_recording"], 1);
+  EXPECT_EQ(doc["evaluations"][2]["pruned_frame"], 41);
+  EXPECT_FALSE(doc["evaluations"][1].contains("pruned_frame"));
 }
 
 TEST(ResultStore, DeleteJobRemovesEverythingOfItAndNothingElse) {

@@ -36,6 +36,7 @@ nlohmann::json JobStatusView(const fs::path& store_path, const QueueEntry& entry
                          {"stop_reason", ""},
                          {"evaluations", 0},
                          {"failed", 0},
+                         {"pruned", 0},
                          {"budget", BudgetOf(entry.spec)},
                          {"best", nullptr},
                          {"runs", nlohmann::json::array()}};
@@ -47,6 +48,7 @@ nlohmann::json JobStatusView(const fs::path& store_path, const QueueEntry& entry
   view["stop_reason"] = job->stop_reason;
   view["evaluations"] = summary.evaluations;
   view["failed"] = summary.failed;
+  view["pruned"] = summary.pruned;
   view["best"] = BestOf(summary.best);
   for (const JobRunRecord& run : store.JobRuns(job->id)) {
     view["runs"].push_back({{"started_unix_s", run.started_unix_s},
@@ -67,12 +69,13 @@ nlohmann::json JobResultsView(const fs::path& store_path, const QueueEntry& entr
   view["summary"] = {{"evaluations", summary.evaluations},
                      {"ok", summary.ok},
                      {"failed", summary.failed},
+                     {"pruned", summary.pruned},
                      {"best", BestOf(summary.best)},
                      {"mean_eval_time_s", summary.mean_eval_time_s},
                      {"checkpoints", summary.checkpoints}};
   for (const EvaluationRecord& e : store.Evaluations(job->id)) {
     view["evaluations"].push_back({{"id", e.id},
-                                   {"status", e.ok ? "ok" : "failed"},
+                                   {"status", e.status()},
                                    {"score", JsonNumber(e.score)},
                                    {"mean_iou", JsonNumber(e.mean_iou)},
                                    {"iou_min", JsonNumber(e.iou_min)},

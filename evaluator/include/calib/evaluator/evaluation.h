@@ -17,6 +17,7 @@
 #include "calib/evaluator/segmentation.h"
 
 #include <filesystem>
+#include <limits>
 #include <span>
 #include <string>
 #include <type_traits>
@@ -87,15 +88,30 @@ void TrackObservedMotion(PreparedRecording& prepared, double window_s);
 /// unreadable video, std::invalid_argument when no object can be meshed.
 PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options);
 
-enum class EvaluationStatus { kOk, kFailed };
-std::string ToString(EvaluationStatus status);
+/// kStopped: stopped early by a ScoreCutoff (EvaluateWithCutoff), every
+/// frame simulated up to then scored.
+enum class EvaluationStatus { kOk, kFailed, kStopped };
+std::string ToString(EvaluationStatus status);  ///< "ok", "failed", "stopped"
+
+/// Stopping a hopeless candidate early (pruning, jobs/pruning.h): the
+/// simulation stops after the first frame at which
+/// `score_before + xor_sum` (xor_sum summed over this recording's frames so
+/// far, in frame order) exceeds `stop_above`. `score_before` is what the
+/// recordings scored before this one add (0 for the first), so that the
+/// sum compared is the candidate's score so far over all its recordings.
+/// The default never stops.
+struct ScoreCutoff {
+  double score_before = 0.0;
+  double stop_above = std::numeric_limits<double>::infinity();
+};
 
 struct EvaluationResult {
   EvaluationStatus status = EvaluationStatus::kFailed;
-  std::string failure_reason;  ///< empty when kOk
+  std::string failure_reason;  ///< empty unless kFailed
   int failure_frame = -1;      ///< first frame that could not be simulated
   /// Per-frame comparison for every frame simulated (all of them when kOk;
-  /// frames [0, failure_frame) when kFailed).
+  /// frames [0, failure_frame) when kFailed; up to and including the frame
+  /// the cutoff was passed at when kStopped).
   std::vector<FrameScore> frames;
   int num_frames = 0;     ///< frames in the recording
   /// The score: the frames' XOR areas (FrameScore::xor_px, px^2) summed over
@@ -148,6 +164,14 @@ class Evaluator {
   template <class OnFrame>
   EvaluationResult Evaluate(const ParameterValues& values, OnFrame&& on_frame);
 
+  /// As Evaluate(values), but stopped by `cutoff` (kStopped) once the score
+  /// so far exceeds it; frames and xor_sum up to then are those of the
+  /// uncut run bit for bit.
+  EvaluationResult EvaluateWithCutoff(const ParameterValues& values, const ScoreCutoff& cutoff) {
+    simulator_.Reset(values);
+    return Run(IgnoreFrames{}, cutoff);
+  }
+
   const Simulator& simulator() const { return simulator_; }
 
  private:
@@ -160,9 +184,10 @@ class Evaluator {
   // wholly covered pixels) and boundary_, and compares it with the frame's
   // object mask.
   FrameScore ScoreFrame(int frame);
-  /// Simulates and scores every frame from the state Reset left.
+  /// Simulates and scores every frame from the state Reset left, up to
+  /// the cutoff.
   template <class OnFrame>
-  EvaluationResult Run(OnFrame&& on_frame);
+  EvaluationResult Run(OnFrame&& on_frame, const ScoreCutoff& cutoff = {});
 
   const PreparedRecording& prepared_;
   Simulator simulator_;
@@ -184,13 +209,14 @@ EvaluationResult Evaluator::Evaluate(const ParameterValues& values, OnFrame&& on
 }
 
 template <class OnFrame>
-EvaluationResult Evaluator::Run(OnFrame&& on_frame) {
+EvaluationResult Evaluator::Run(OnFrame&& on_frame, const ScoreCutoff& cutoff) {
   EvaluationResult result;
   const int num_frames = prepared_.scene.num_frames;
   result.num_frames = num_frames;
   result.frames.reserve(num_frames);
   double iou_sum = 0.0;
-  for (int frame = 0; frame < num_frames; ++frame) {
+  bool stopped = false;
+  for (int frame = 0; frame < num_frames && !stopped; ++frame) {
     if (frame > 0 && !simulator_.Advance()) break;
     const FrameScore score = ScoreFrame(frame);
     result.frames.push_back(score);
@@ -200,8 +226,12 @@ EvaluationResult Evaluator::Run(OnFrame&& on_frame) {
       AddHalfCovered(boundary_, mesh_mask_);
       on_frame(frame, simulator_, mesh_mask_, score);
     }
+    // The score so far, summed as the candidate's score is (RecordingObjective).
+    stopped = cutoff.score_before + result.xor_sum > cutoff.stop_above;
   }
-  if (simulator_.status() == SimulationStatus::kFailed) {
+  if (stopped) {
+    result.status = EvaluationStatus::kStopped;
+  } else if (simulator_.status() == SimulationStatus::kFailed) {
     result.status = EvaluationStatus::kFailed;
     result.failure_reason = simulator_.failure_reason();
     result.failure_frame = simulator_.failure_frame();

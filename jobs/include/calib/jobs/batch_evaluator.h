@@ -16,7 +16,11 @@
 //    every tick_s seconds while nothing finishes (for progress displays).
 //  - A failed evaluation is retried on the same worker until it succeeds or
 //    max_attempts attempts are used; an exception from the objective is a
-//    failed attempt whose reason starts with "exception: ".
+//    failed attempt whose reason starts with "exception: ". A pruned one
+//    (stopped early) is not retried.
+//  - With pruning (a PruneBounds, pruning.h), each candidate is evaluated
+//    with the EarlyStop that prune->StartFor(id) gives when it starts
+//    (called on any thread); without, every frame and no trace.
 //  - Deterministic: a candidate's result does not depend on the worker (the
 //    ObjectiveWorker contract), so the runner's history does not depend on
 //    the number of workers.
@@ -45,6 +49,8 @@ struct FinishedCandidate {
   std::string worker;      ///< e.g. "rank 0 thread 1"
 };
 
+class PruneBounds;
+
 class BatchEvaluator {
  public:
   virtual ~BatchEvaluator() = default;
@@ -54,9 +60,9 @@ class BatchEvaluator {
   /// One line for logs, e.g. "4 OpenMP threads".
   virtual std::string Describe() const = 0;
 
-  /// See the contract above. max_attempts >= 1.
+  /// See the contract above. max_attempts >= 1; prune: null without pruning.
   virtual void Evaluate(std::span<const PendingCandidate> batch, int max_attempts,
-                        const std::function<bool()>& should_stop,
+                        const PruneBounds* prune, const std::function<bool()>& should_stop,
                         const std::function<void(std::vector<FinishedCandidate>&&)>& on_done,
                         double tick_s) = 0;
 };
@@ -64,7 +70,8 @@ class BatchEvaluator {
 /// Evaluates one candidate with retries; exceptions become failed attempts.
 /// The common core of every BatchEvaluator's worker.
 FinishedCandidate EvaluateWithRetries(ObjectiveWorker& worker, const PendingCandidate& candidate,
-                                      int max_attempts, const std::string& worker_label);
+                                      const EarlyStop& stop, int max_attempts,
+                                      const std::string& worker_label);
 
 /// OpenMP: `threads` workers (schedule(dynamic, 1)), each with its own
 /// ObjectiveWorker made once here. The parallel region runs on a helper
@@ -78,7 +85,7 @@ class ThreadBatchEvaluator final : public BatchEvaluator {
   int workers() const override { return static_cast<int>(workers_.size()); }
   std::string Describe() const override;
   void Evaluate(std::span<const PendingCandidate> batch, int max_attempts,
-                const std::function<bool()>& should_stop,
+                const PruneBounds* prune, const std::function<bool()>& should_stop,
                 const std::function<void(std::vector<FinishedCandidate>&&)>& on_done,
                 double tick_s) override;
 

@@ -53,6 +53,10 @@ struct OptimizerSpec {
 struct BudgetSpec {
   int64_t evaluations = 0;            ///< >= 1; the runner never evaluates more
   std::optional<double> wall_time_s;  ///< > 0 when set; the runner stops (resumably) after it
+  /// > 1 when set: candidates whose score so far exceeds this factor times
+  /// the best score before them are stopped and recorded as pruned
+  /// (pruning.h). Unset: none is.
+  std::optional<double> prune_factor;
 };
 
 /// A checkpoint is written when either trigger fires (0 disables a trigger;

@@ -14,8 +14,10 @@
 // Messages (MPI_COMM_WORLD, packed bytes, native endianness: one cluster of
 // one architecture):
 //   worker -> manager  kReady   status (0 ok, 1 error) and a message
-//   manager -> worker  kWork    candidate id, max attempts, parameter values
-//   worker -> manager  kResult  the FinishedCandidate
+//   manager -> worker  kWork    candidate id, max attempts, parameter values,
+//                               the EarlyStop (pruning.h)
+//   worker -> manager  kResult  the FinishedCandidate (with the trace of the
+//                               score so far when pruning: a double a frame)
 //   manager -> worker  kStop    (empty)
 
 #include "calib/jobs/batch_evaluator.h"
@@ -69,7 +71,7 @@ class MpiBatchEvaluator final : public BatchEvaluator {
   int workers() const override { return size_ - 1; }
   std::string Describe() const override;
   void Evaluate(std::span<const PendingCandidate> batch, int max_attempts,
-                const std::function<bool()>& should_stop,
+                const PruneBounds* prune, const std::function<bool()>& should_stop,
                 const std::function<void(std::vector<FinishedCandidate>&&)>& on_done,
                 double tick_s) override;
 

@@ -17,6 +17,13 @@
 //    something outside the candidate went wrong (memory, I/O); the runner
 //    catches it and records a failed evaluation whose reason starts with
 //    "exception: ", which the failure policy may retry.
+//  - Early stopping (pruning, pruning.h): with EarlyStop::trace the result
+//    holds the score so far after every frame scored; the simulation stops
+//    (status kPruned) after the first frame at which that exceeds
+//    EarlyStop::stop_above. The trace up to there is that of the run without
+//    a bound, bit for bit, so where a run stopped never changes what the
+//    runner records. A worker without frames may ignore EarlyStop; a job
+//    that prunes then fails on its first result without a trace.
 
 #include "calib/core/model_definition.h"
 #include "calib/core/parameters.h"
@@ -32,8 +39,10 @@
 
 namespace calib {
 
-enum class CandidateStatus { kOk, kFailed };
-/// "ok" / "failed".
+/// kPruned: stopped early as hopeless (pruning.h); from a worker: stopped at
+/// EarlyStop::stop_above.
+enum class CandidateStatus { kOk, kFailed, kPruned };
+/// "ok" / "failed" / "pruned".
 std::string ToString(CandidateStatus status);
 /// Throws std::invalid_argument naming the text for anything else.
 CandidateStatus CandidateStatusFromString(std::string_view text);
@@ -51,6 +60,15 @@ struct IouSummary {
   bool operator==(const IouSummary&) const = default;
 };
 
+/// How one evaluation may stop early (pruning.h). The default runs
+/// every frame and records no trace.
+struct EarlyStop {
+  /// Stop after the first frame at which the score so far exceeds this.
+  double stop_above = std::numeric_limits<double>::infinity();
+  /// Fill ObjectiveResult::trace and recording_frames.
+  bool trace = false;
+};
+
 struct ObjectiveResult {
   CandidateStatus status = CandidateStatus::kFailed;
   /// Total XOR pixel area (px^2, EvaluationResult::xor_sum) over every
@@ -64,6 +82,14 @@ struct ObjectiveResult {
   int failure_frame = -1;
   int failure_recording = -1;  ///< failed: index of the recording that failed
   double eval_seconds = 0.0;  ///< wall time of the evaluation (not deterministic)
+  /// With EarlyStop::trace: the score so far after each frame scored, over
+  /// the recordings in order and their frames in order (trace[k]: the first
+  /// k + 1 frames). Non-decreasing; after the last frame scored it is
+  /// `score`, bit for bit. Empty without EarlyStop::trace.
+  std::vector<double> trace;
+  /// With EarlyStop::trace: every training recording's frame count, in
+  /// order (names the recording and frame of a trace index).
+  std::vector<int> recording_frames;
 
   bool ok() const { return status == CandidateStatus::kOk; }
 };
@@ -72,7 +98,10 @@ struct ObjectiveResult {
 class ObjectiveWorker {
  public:
   virtual ~ObjectiveWorker() = default;
-  virtual ObjectiveResult Evaluate(const ParameterValues& values) = 0;
+  /// Every frame, no trace.
+  ObjectiveResult Evaluate(const ParameterValues& values) { return Evaluate(values, EarlyStop{}); }
+  /// See the contract at the top.
+  virtual ObjectiveResult Evaluate(const ParameterValues& values, const EarlyStop& stop) = 0;
 };
 
 class Objective {
@@ -89,7 +118,8 @@ class Objective {
 /// every parameter of ModelParameterSpecs(model)) and sum the XOR pixel
 /// areas over all frames. A candidate is failed
 /// when any recording's simulation fails; its reason names the recording
-/// and frame.
+/// and frame. Its workers stop early and trace as EarlyStop asks, without
+/// allocating per frame.
 class RecordingObjective final : public Objective {
  public:
   /// `recordings` non-empty; `options` and `model` valid (else
@@ -112,7 +142,8 @@ class RecordingObjective final : public Objective {
 };
 
 /// Combines per-recording results into one ObjectiveResult (score, IoU
-/// summary, first failure). `names` labels the recordings in the reason.
+/// summary, first failure; kPruned when a recording was stopped by its
+/// cutoff). `names` labels the recordings in the reason.
 ObjectiveResult CombineRecordingResults(const std::vector<EvaluationResult>& results,
                                         const std::vector<std::string>& names);
 

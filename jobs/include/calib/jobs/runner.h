@@ -18,7 +18,11 @@
 //    its later candidates outstanding;
 //  - the abort-after-N rule counts failures in id order and cuts the history
 //    right after the N-th failure (later evaluations of the batch are
-//    deleted from the store);
+//    deleted from the store); pruned evaluations are not failures;
+//  - with pruning (budget.prune_factor, pruning.h) workers stop candidates
+//    at bounds that depend on timing, but each candidate is recorded only
+//    once every candidate before it is, and then decided by the exact rule
+//    from its trace: where a run stopped never shows in the history;
 //  - wall time and checkpoints only decide where a run stops and what is
 //    saved, never what is asked or told.
 // Timing fields (eval_time_s, worker, recorded_unix_s) are not part of the
@@ -31,7 +35,9 @@
 // and bit-identical x is told its stored result (a different x is an
 // error: the spec or the code changed). So a run killed at any moment and
 // resumed produces the history of an uninterrupted run, and no evaluation
-// is lost or done twice after it was recorded.
+// is lost or done twice after it was recorded. (With pruning a candidate
+// that finished after one still running when the run stopped is not
+// recorded; the resume simulates it again.)
 
 #include "calib/jobs/batch_evaluator.h"
 #include "calib/jobs/calibration_request.h"
@@ -71,6 +77,7 @@ struct RunProgress {
   int64_t evaluations = 0;       ///< told, over the whole job
   int64_t budget = 0;            ///< the spec's budget.evaluations
   int64_t failed = 0;            ///< over the whole job, the current batch's included
+  int64_t pruned = 0;            ///< as `failed`, the pruned ones (not failures)
   int64_t evaluated_now = 0;     ///< simulated by this invocation
   int64_t running = 0;           ///< finished in the current batch, not yet told
   std::optional<double> best_score;
@@ -97,6 +104,7 @@ struct RunSummary {
   int64_t evaluated_now = 0;  ///< simulated by this invocation
   int64_t reused = 0;         ///< taken from the store (recorded after the checkpoint)
   int64_t failed = 0;         ///< over the whole job
+  int64_t pruned = 0;         ///< over the whole job (not failures)
   int64_t deleted = 0;        ///< evaluations removed past an abort cut or the budget
   std::optional<EvaluationRecord> best;
   std::optional<int64_t> resumed_from_checkpoint;  ///< its sequence

@@ -3,13 +3,15 @@
 // evaluation of every job, and checkpoints. The store owns persistence; the
 // runner owns what goes in.
 //
-// Tables (schema version 3, PRAGMA user_version; a version 1 store, which
-// lacks job_locks and job_inputs, or a version 2 store, which lacks job_runs
-// and job_queue, is migrated when opened for writing):
+// Tables (schema version 4, PRAGMA user_version; a version 1 store, which
+// lacks job_locks and job_inputs, a version 2 store, which lacks job_runs
+// and job_queue, or a version 3 store, whose evaluations are only ok or
+// failed and have no pruned frame, is migrated when opened for writing):
 //   jobs(id, name UNIQUE, spec_json, created_unix_s, updated_unix_s, status,
 //        stop_reason, result_json)
-//   evaluations(job_id, id, parameters_json, x_json, status, score, mean_iou,
-//        iou_min, iou_max, failure_frame, reason, eval_time_s, worker,
+//   evaluations(job_id, id, parameters_json, x_json, status ('ok', 'failed'
+//        or 'pruned'), score, mean_iou, iou_min, iou_max, failure_frame,
+//        pruned_recording, pruned_frame, reason, eval_time_s, worker,
 //        attempt, detail_json, recorded_unix_s)     PRIMARY KEY (job_id, id)
 //   checkpoints(job_id, sequence, created_unix_s, evaluations_done,
 //        state_json BLOB, state_size, state_fnv1a64)  PRIMARY KEY (job_id, sequence)
@@ -132,23 +134,32 @@ struct JobInfo {
   nlohmann::json result;  ///< free JSON the runner sets (held-out scores...); null if unset
 };
 
-/// One evaluated candidate.
+/// One evaluated candidate: ok, failed, or pruned (stopped early as
+/// hopeless, jobs/pruning.h; neither ok nor failed).
 struct EvaluationRecord {
   int64_t id = 0;              ///< the optimiser's candidate id; unique per job
   ParameterValues parameters;  ///< every model parameter, fixed ones included
   std::vector<double> x;       ///< the candidate's point as the optimiser asked it
-  bool ok = false;             ///< false: failed (see reason)
-  double score = 0.0;          ///< ok: the objective (XOR area over the training set); failed: NaN
-  double mean_iou = 0.0;       ///< ok: over every frame; failed: NaN (never ranks above an ok one)
-  double iou_min = 0.0;        ///< ok: per-frame IoU summary; failed: NaN
+  bool ok = false;             ///< false: failed or pruned (see reason)
+  bool pruned = false;         ///< true: pruned (ok is false)
+  /// ok: the objective (XOR area over the training set); pruned: the score
+  /// so far at the pruning frame (a lower bound); failed: NaN.
+  double score = 0.0;
+  double mean_iou = 0.0;       ///< ok: over every frame; otherwise NaN (never ranks first)
+  double iou_min = 0.0;        ///< ok: per-frame IoU summary; otherwise NaN
   double iou_max = 0.0;
   int failure_frame = -1;      ///< failed: the first frame not simulated; -1 otherwise
-  std::string reason;          ///< failed: why; empty when ok
+  int pruned_recording = -1;   ///< pruned: index of the training recording of the pruning frame
+  int pruned_frame = -1;       ///< pruned: the frame (from 0) after which it was pruned
+  std::string reason;          ///< failed or pruned: why; empty when ok
   double eval_time_s = 0.0;    ///< wall time of the evaluation
   std::string worker;          ///< who evaluated it, e.g. "rank 0 thread 3"
   int attempt = 1;             ///< attempts used (retry policy), >= 1
   nlohmann::json detail;       ///< free JSON (per-recording scores...); null if unset
   double recorded_unix_s = 0.0;  ///< set by RecordEvaluations; ignored on input
+
+  /// "ok", "failed" or "pruned": the status column.
+  const char* status() const { return ok ? "ok" : pruned ? "pruned" : "failed"; }
 };
 
 /// A checkpoint: the optimiser's state, RNG and counters at a moment.
@@ -170,9 +181,10 @@ struct LatestCheckpointResult {
 };
 
 struct JobSummary {
-  int64_t evaluations = 0;  ///< recorded (ok + failed)
+  int64_t evaluations = 0;  ///< recorded (ok + failed + pruned)
   int64_t ok = 0;
   int64_t failed = 0;
+  int64_t pruned = 0;
   std::optional<EvaluationRecord> best;  ///< nullopt: no ok evaluation
   double mean_eval_time_s = 0.0;          ///< over all evaluations; 0 if none
   double total_eval_time_s = 0.0;
@@ -278,7 +290,8 @@ class ResultStore {
   // ------------------------------------------------- reports, exports
   JobSummary Summary(int64_t job) const;
   /// One row per evaluation, by id: id, status, score, mean_iou, iou_min,
-  /// iou_max, failure_frame, reason, eval_time_s, worker, attempt, then one
+  /// iou_max, failure_frame, pruned_recording, pruned_frame, reason,
+  /// eval_time_s, worker, attempt, then one
   /// column per parameter (sorted by name). Doubles in their shortest form
   /// that reads back to the same bits; NaN as an empty field; fields quoted
   /// by libcsv where needed. Throws StoreError naming the path, or for an

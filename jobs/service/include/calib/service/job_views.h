@@ -14,14 +14,14 @@ namespace calib::service {
 
 /// {"name", "state" (queue), "priority", "submitted_unix_s", "message",
 ///  "status" (the job's in the store, or "queued" before it starts),
-///  "stop_reason", "evaluations", "failed", "budget", "best": {id, score,
+///  "stop_reason", "evaluations", "failed", "pruned", "budget", "best": {id, score,
 ///  mean_iou} or null, "runs": [{started_unix_s, program_version, host,
 ///  command}]}.
 nlohmann::json JobStatusView(const std::filesystem::path& store, const QueueEntry& entry);
 
-/// {"job": JobStatusView, "summary": {...}, "evaluations": [{id, status,
-///  score, mean_iou, iou_min, iou_max, failure_frame, reason, attempt,
-///  parameters, x}]}.
+/// {"job": JobStatusView, "summary": {...}, "evaluations": [{id, status
+///  ("ok", "failed" or "pruned"), score, mean_iou, iou_min, iou_max,
+///  failure_frame, reason, attempt, parameters, x}]}.
 nlohmann::json JobResultsView(const std::filesystem::path& store, const QueueEntry& entry);
 
 /// {"evaluation", "score", "mean_iou", "parameters": {name: value}};
