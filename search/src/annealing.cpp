@@ -122,16 +122,27 @@ class Annealing final : public Optimizer {
     started_ = s.at("started").get<bool>();
     next_id_ = s.at("next_id").get<int64_t>();
     evals_ = s.at("evals").get<int64_t>();
-    batch_.Restore(s.at("batch"));
-    batch_u_ = internal::MatrixFromJson(s.at("batch_u"));
-    current_u_ = internal::VectorFromJson(s.at("current_u"));
+    const auto n = static_cast<size_t>(n_);
+    batch_.Restore(s.at("batch"), n);
+    batch_u_ = internal::MatrixFromJson(s.at("batch_u"), n, "batch_u");
+    if (batch_u_.size() != static_cast<size_t>(batch_.size())) {
+      throw std::invalid_argument("annealing state: batch_u and the batch differ in size");
+    }
+    // The current and best points are set when the warm-up ends.
+    const size_t point_size = started_ ? n : 0;
+    current_u_ = internal::VectorFromJson(s.at("current_u"), point_size, "current_u");
     current_f_ = internal::DoubleFromJson(s.at("current_f"));
-    best_u_ = internal::VectorFromJson(s.at("best_u"));
+    best_u_ = internal::VectorFromJson(s.at("best_u"), point_size, "best_u");
     best_f_ = internal::DoubleFromJson(s.at("best_f"));
     temperature_ = internal::DoubleFromJson(s.at("temperature"));
-    step_ = internal::VectorFromJson(s.at("step"));
+    step_ = internal::VectorFromJson(s.at("step"), n, "step");
     accepted_ = s.at("accepted").get<std::vector<int>>();
     coordinate_ = s.at("coordinate").get<int>();
+    if (accepted_.size() != static_cast<size_t>(n_) || coordinate_ < 0 || coordinate_ >= n_) {
+      throw std::invalid_argument(fmt::format(
+          "annealing state: {} acceptance counts and coordinate {} for {} dimensions",
+          accepted_.size(), coordinate_, n_));
+    }
     moves_since_adjust_ = s.at("moves_since_adjust").get<int>();
     adjusts_at_temperature_ = s.at("adjusts_at_temperature").get<int>();
   }

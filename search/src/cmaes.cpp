@@ -41,11 +41,20 @@ nlohmann::json ToJson(const MatrixXd& m) {
 
 MatrixXd MatrixFrom(const nlohmann::json& j) {
   const auto v = internal::VectorFromJson(j.at("data"));
-  MatrixXd m(j.at("rows").get<Eigen::Index>(), j.at("cols").get<Eigen::Index>());
-  if (static_cast<size_t>(m.size()) != v.size()) throw std::invalid_argument("cmaes state: bad matrix");
+  const auto rows = j.at("rows").get<int64_t>(), cols = j.at("cols").get<int64_t>();
+  // Checked before anything is allocated for them.
+  if (rows < 0 || cols < 0 || (rows > 0 && cols != static_cast<int64_t>(v.size()) / rows) ||
+      static_cast<size_t>(rows) * static_cast<size_t>(cols) != v.size()) {
+    throw std::invalid_argument(fmt::format(
+        "cmaes state: a {} x {} matrix with {} values", rows, cols, v.size()));
+  }
+  MatrixXd m(rows, cols);
   std::copy(v.begin(), v.end(), m.data());
   return m;
 }
+
+// Whether m is rows x cols.
+bool Shaped(const MatrixXd& m, int rows, int cols) { return m.rows() == rows && m.cols() == cols; }
 
 class Cmaes final : public Optimizer {
  public:
@@ -126,21 +135,32 @@ class Cmaes final : public Optimizer {
     rng_.Restore(s.at("rng"));
     generation_ = s.at("generation").get<int64_t>();
     evals_ = s.at("evals").get<int64_t>();
-    mean_ = MatrixFrom(s.at("mean"));
+    const MatrixXd mean = MatrixFrom(s.at("mean")), C = MatrixFrom(s.at("C")),
+                   B = MatrixFrom(s.at("B")), D = MatrixFrom(s.at("D")),
+                   ps = MatrixFrom(s.at("ps")), pc = MatrixFrom(s.at("pc")),
+                   samples = MatrixFrom(s.at("samples"));
+    batch_.Restore(s.at("batch"), static_cast<size_t>(n_));
+    // The vectors n x 1, the matrices n x n, the samples one column per
+    // candidate of the batch in progress (between generations they are the
+    // last one's, unused until the next is sampled).
+    if (!Shaped(mean, n_, 1) || !Shaped(C, n_, n_) || !Shaped(B, n_, n_) || !Shaped(D, n_, 1) ||
+        !Shaped(ps, n_, 1) || !Shaped(pc, n_, 1) ||
+        !(batch_.size() == 0 || Shaped(samples, n_, batch_.size()))) {
+      throw std::invalid_argument(fmt::format(
+          "cmaes state: its vectors and matrices are not those of {} dimensions and a batch of {}",
+          n_, batch_.size()));
+    }
+    mean_ = mean;
+    C_ = C;
+    B_ = B;
+    D_ = D;
+    ps_ = ps;
+    pc_ = pc;
+    samples_ = samples;
     sigma_ = internal::DoubleFromJson(s.at("sigma"));
-    C_ = MatrixFrom(s.at("C"));
-    B_ = MatrixFrom(s.at("B"));
-    D_ = MatrixFrom(s.at("D"));
-    ps_ = MatrixFrom(s.at("ps"));
-    pc_ = MatrixFrom(s.at("pc"));
-    samples_ = MatrixFrom(s.at("samples"));
-    batch_.Restore(s.at("batch"));
     stop_reason_ = s.at("stop_reason").get<std::string>();
     // A state saved when the budget was kept in it.
     if (stop_reason_.rfind("budget:", 0) == 0) stop_reason_.clear();
-    if (mean_.size() != n_ || C_.rows() != n_ || C_.cols() != n_) {
-      throw std::invalid_argument("cmaes state: dimension differs");
-    }
   }
 
  private:

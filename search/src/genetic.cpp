@@ -99,9 +99,10 @@ class Genetic final : public Optimizer {
   void RestoreState(const nlohmann::json& state) override {
     rng_.Restore(state.at("rng"));
     generation_ = state.at("generation").get<int>();
-    batch_.Restore(state.at("batch"));
-    pop_x_ = internal::MatrixFromJson(state.at("population_x"));
-    pop_f_ = internal::VectorFromJson(state.at("population_f"));
+    const size_t n = bounds_.lower.size();
+    batch_.Restore(state.at("batch"), n);
+    pop_x_ = internal::MatrixFromJson(state.at("population_x"), n, "population_x");
+    pop_f_ = internal::VectorFromJson(state.at("population_f"), pop_x_.size(), "population_f");
   }
 
  private:

@@ -180,7 +180,14 @@ class NloptOptimizer final : public Optimizer {
   void RestoreState(const nlohmann::json& state) override {
     stored_.clear();
     for (const auto& e : state.at("evaluations")) {
-      stored_.push_back({internal::VectorFromJson(e.at("raw_x")),
+      // The replay compares NLopt's points with these, dimension by dimension.
+      std::vector<double> raw_x = internal::VectorFromJson(e.at("raw_x"));
+      if (raw_x.size() != bounds_.lower.size()) {
+        throw std::invalid_argument(fmt::format(
+            "{} state: evaluation {} has a point of {} coordinates; the search has {}", name(),
+            stored_.size(), raw_x.size(), bounds_.lower.size()));
+      }
+      stored_.push_back({std::move(raw_x),
                          internal::DoubleFromJson(e.at("value")), e.at("failed").get<bool>(),
                          0.0});
       stored_.back().nlopt_value = ValueForNlopt(stored_.size() - 1);

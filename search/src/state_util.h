@@ -46,6 +46,17 @@ inline std::vector<double> VectorFromJson(const nlohmann::json& j) {
   return v;
 }
 
+// A vector of exactly `n` values (a point or a per-coordinate quantity of an
+// n-dimensional search); `what` names it in the error.
+inline std::vector<double> VectorFromJson(const nlohmann::json& j, size_t n, const char* what) {
+  std::vector<double> v = VectorFromJson(j);
+  if (v.size() != n) {
+    throw std::invalid_argument("state: " + std::string(what) + " has " + std::to_string(v.size()) +
+                                " values; the search has " + std::to_string(n) + " dimensions");
+  }
+  return v;
+}
+
 inline nlohmann::json MatrixToJson(const std::vector<std::vector<double>>& m) {
   nlohmann::json j = nlohmann::json::array();
   for (const auto& row : m) j.push_back(VectorToJson(row));
@@ -55,6 +66,14 @@ inline nlohmann::json MatrixToJson(const std::vector<std::vector<double>>& m) {
 inline std::vector<std::vector<double>> MatrixFromJson(const nlohmann::json& j) {
   std::vector<std::vector<double>> m;
   for (const auto& row : j) m.push_back(VectorFromJson(row));
+  return m;
+}
+
+// Rows of exactly `n` values each (points of an n-dimensional search).
+inline std::vector<std::vector<double>> MatrixFromJson(const nlohmann::json& j, size_t n,
+                                                       const char* what) {
+  std::vector<std::vector<double>> m;
+  for (const auto& row : j) m.push_back(VectorFromJson(row, n, what));
   return m;
 }
 
@@ -133,9 +152,10 @@ struct Batch {
             {"told", told_json},    {"asked", asked}};
   }
 
-  void Restore(const nlohmann::json& j) {
+  // `dimension`: the search's; every point must have it.
+  void Restore(const nlohmann::json& j, size_t dimension) {
     first_id = j.at("first_id").get<int64_t>();
-    x = MatrixFromJson(j.at("x"));
+    x = MatrixFromJson(j.at("x"), dimension, "a point of the batch");
     value = VectorFromJson(j.at("value"));
     told.clear();
     told_count = 0;

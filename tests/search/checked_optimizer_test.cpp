@@ -209,6 +209,62 @@ TEST(CheckedOptimizer, RestoreRefusesAPlugInStateThatCountsOtherwise) {
   }
 }
 
+// A point of the optimiser's own state with another number of coordinates
+// than the search has is refused at the restore, naming what is wrong,
+// before anything reads past it (fuzz_checkpoint found NLopt's replay
+// reading past a two-coordinate point of a three-dimensional search).
+TEST(CheckedOptimizer, RestoreRefusesAPlugInPointOfAnotherDimension) {
+  struct Case {
+    std::string optimizer;
+    nlohmann::json settings;
+    std::vector<std::string> path;  // to the point shortened to one coordinate
+    std::string error;
+  };
+  const std::vector<Case> cases = {
+      {"genetic", {{"population", 6}, {"generations", 6}}, {"batch", "x", "0"},
+       "a point of the batch has 1 values; the search has 2 dimensions"},
+      {"annealing", {{"max_evals", 40}}, {"step"}, "step has 1 values; the search has 2 dimensions"},
+      {"cmaes", {{"max_evals", 40}}, {"batch", "x", "1"},
+       "a point of the batch has 1 values; the search has 2 dimensions"},
+      {"nlopt:SBPLX", {{"maxeval", 40}}, {"evaluations", "2", "raw_x"},
+       "evaluation 2 has a point of 1 coordinates; the search has 2"}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.optimizer);
+    const auto make = [&] { return MakeOptimizer(c.optimizer, c.settings, testing::Box(2, 0, 1), 3); };
+    CheckedOptimizer opt = make();
+    for (int i = 0; i < 3; ++i) {
+      const std::vector<Candidate> candidates = opt.Ask(1);
+      ASSERT_EQ(candidates.size(), 1u);
+      opt.Tell(testing::Evaluate(testing::Sphere, candidates[0]));
+    }
+    nlohmann::json state = opt.SaveState();
+    nlohmann::json* point = &state["plugin"];
+    for (const std::string& key : c.path) {
+      point = point->is_array() ? &(*point)[std::stoul(key)] : &(*point)[key];
+    }
+    ASSERT_TRUE(point->is_array() && point->size() == 2) << point->dump();
+    point->erase(1);
+    const std::string error = RestoreError(make(), state);
+    EXPECT_NE(error.find(c.error), std::string::npos) << error;
+  }
+}
+
+// The cmaes state's vectors and matrices must be those of its dimension.
+TEST(CheckedOptimizer, RestoreRefusesACmaesStateOfAnotherShape) {
+  const auto make = [] {
+    return MakeOptimizer("cmaes", {{"max_evals", 40}}, testing::Box(2, 0, 1), 3);
+  };
+  CheckedOptimizer opt = make();
+  opt.Tell(testing::Evaluate(testing::Sphere, opt.Ask(1).at(0)));
+  const nlohmann::json saved = opt.SaveState();
+  nlohmann::json wrong_c = saved;
+  wrong_c["plugin"]["C"] = {{"rows", 3}, {"cols", 3}, {"data", std::vector<double>(9, 0.0)}};
+  EXPECT_NE(RestoreError(make(), wrong_c).find("not those of 2 dimensions"), std::string::npos);
+  nlohmann::json negative = saved;
+  negative["plugin"]["mean"] = {{"rows", -2}, {"cols", -1}, {"data", {0.5, 0.5}}};
+  EXPECT_NE(RestoreError(make(), negative).find("a -2 x -1 matrix with 2 values"), std::string::npos);
+}
+
 // The state fuzz_checkpoint found: the grid's own part counts more told
 // than asked.
 TEST(CheckedOptimizer, AGridStateWithMoreToldThanAskedIsRefused) {
