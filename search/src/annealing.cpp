@@ -120,8 +120,8 @@ class Annealing final : public Optimizer {
   void RestoreState(const nlohmann::json& s) override {
     rng_.Restore(s.at("rng"));
     started_ = s.at("started").get<bool>();
-    next_id_ = s.at("next_id").get<int64_t>();
-    evals_ = s.at("evals").get<int64_t>();
+    next_id_ = internal::IntFromJson<int64_t>(s.at("next_id"), "next_id");
+    evals_ = internal::IntFromJson<int64_t>(s.at("evals"), "evals");
     const auto n = static_cast<size_t>(n_);
     batch_.Restore(s.at("batch"), n);
     batch_u_ = internal::MatrixFromJson(s.at("batch_u"), n, "batch_u");
@@ -136,15 +136,15 @@ class Annealing final : public Optimizer {
     best_f_ = internal::DoubleFromJson(s.at("best_f"));
     temperature_ = internal::DoubleFromJson(s.at("temperature"));
     step_ = internal::VectorFromJson(s.at("step"), n, "step");
-    accepted_ = s.at("accepted").get<std::vector<int>>();
-    coordinate_ = s.at("coordinate").get<int>();
+    accepted_ = internal::IntVectorFromJson<int>(s.at("accepted"), "accepted");
+    coordinate_ = internal::IntFromJson<int>(s.at("coordinate"), "coordinate");
     if (accepted_.size() != static_cast<size_t>(n_) || coordinate_ < 0 || coordinate_ >= n_) {
       throw std::invalid_argument(fmt::format(
           "annealing state: {} acceptance counts and coordinate {} for {} dimensions",
           accepted_.size(), coordinate_, n_));
     }
-    moves_since_adjust_ = s.at("moves_since_adjust").get<int>();
-    adjusts_at_temperature_ = s.at("adjusts_at_temperature").get<int>();
+    moves_since_adjust_ = internal::IntFromJson<int>(s.at("moves_since_adjust"), "moves_since_adjust");
+    adjusts_at_temperature_ = internal::IntFromJson<int>(s.at("adjusts_at_temperature"), "adjusts_at_temperature");
   }
 
  private:

@@ -48,7 +48,7 @@ nlohmann::json EvaluationToJson(const Evaluation& e) {
 }
 
 Evaluation EvaluationFromJson(const nlohmann::json& j) {
-  return {j.at("id").get<int64_t>(), internal::VectorFromJson(j.at("x")),
+  return {internal::IntFromJson<int64_t>(j.at("id"), "id"), internal::VectorFromJson(j.at("x")),
           internal::DoubleFromJson(j.at("value")), j.at("failed").get<bool>()};
 }
 
@@ -161,20 +161,20 @@ void CheckedOptimizer::RestoreState(const nlohmann::json& state) {
   try {
     if (!state.is_object()) throw std::invalid_argument("not a JSON object");
     const std::string saved_name = state.at("optimizer").get<std::string>();
-    const int saved_dimension = state.at("dimension").get<int>();
+    const int saved_dimension = internal::IntFromJson<int>(state.at("dimension"), "dimension");
     if (saved_name != name() || saved_dimension != dimension()) {
       throw std::invalid_argument(fmt::format("it was saved by '{}' in dimension {}", saved_name,
                                               saved_dimension));
     }
     plugin_->RestoreState(state.at("plugin"));
-    next_id_ = state.at("next_id").get<int64_t>();
-    told_count_ = state.at("told").get<int64_t>();
-    failed_count_ = state.at("failed").get<int64_t>();
+    next_id_ = internal::IntFromJson<int64_t>(state.at("next_id"), "next_id");
+    told_count_ = internal::IntFromJson<int64_t>(state.at("told"), "told");
+    failed_count_ = internal::IntFromJson<int64_t>(state.at("failed"), "failed");
     best_.reset();
     if (!state.at("best").is_null()) best_ = EvaluationFromJson(state.at("best"));
     outstanding_.clear();
     for (const auto& o : state.at("outstanding")) {
-      outstanding_.emplace(o.at("id").get<int64_t>(), internal::VectorFromJson(o.at("x")));
+      outstanding_.emplace(internal::IntFromJson<int64_t>(o.at("id"), "id"), internal::VectorFromJson(o.at("x")));
     }
     CheckRestoredCounts();
   } catch (const std::exception& e) {

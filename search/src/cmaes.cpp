@@ -41,7 +41,7 @@ nlohmann::json ToJson(const MatrixXd& m) {
 
 MatrixXd MatrixFrom(const nlohmann::json& j) {
   const auto v = internal::VectorFromJson(j.at("data"));
-  const auto rows = j.at("rows").get<int64_t>(), cols = j.at("cols").get<int64_t>();
+  const auto rows = internal::IntFromJson<int64_t>(j.at("rows"), "rows"), cols = internal::IntFromJson<int64_t>(j.at("cols"), "cols");
   // Checked before anything is allocated for them.
   if (rows < 0 || cols < 0 || (rows > 0 && cols != static_cast<int64_t>(v.size()) / rows) ||
       static_cast<size_t>(rows) * static_cast<size_t>(cols) != v.size()) {
@@ -133,8 +133,8 @@ class Cmaes final : public Optimizer {
   }
   void RestoreState(const nlohmann::json& s) override {
     rng_.Restore(s.at("rng"));
-    generation_ = s.at("generation").get<int64_t>();
-    evals_ = s.at("evals").get<int64_t>();
+    generation_ = internal::IntFromJson<int64_t>(s.at("generation"), "generation");
+    evals_ = internal::IntFromJson<int64_t>(s.at("evals"), "evals");
     const MatrixXd mean = MatrixFrom(s.at("mean")), C = MatrixFrom(s.at("C")),
                    B = MatrixFrom(s.at("B")), D = MatrixFrom(s.at("D")),
                    ps = MatrixFrom(s.at("ps")), pc = MatrixFrom(s.at("pc")),

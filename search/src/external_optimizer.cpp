@@ -103,14 +103,14 @@ class ExternalOptimizer final : public Optimizer {
     nlohmann::json process_state;
     try {
       process_state = state.at("process");
-      asked_ = state.at("asked").get<int64_t>();
+      asked_ = internal::IntFromJson<int64_t>(state.at("asked"), "asked");
       done_ = state.at("done").get<bool>();
       stop_reason_ = state.at("stop_reason").get<std::string>();
       pending_.clear();
       for (const auto& c : state.at("pending")) {
-        pending_.push_back({c.at("id").get<int64_t>(), c.at("x").get<std::vector<double>>()});
+        pending_.push_back({internal::IntFromJson<int64_t>(c.at("id"), "id"), c.at("x").get<std::vector<double>>()});
       }
-      handed_ = state.at("handed").get<size_t>();
+      handed_ = internal::IntFromJson<size_t>(state.at("handed"), "handed");
       if (handed_ > pending_.size()) throw std::invalid_argument("more handed out than asked");
       // The batch holds the last ids asked of the program, in order (Counts
       // relies on it).
@@ -127,7 +127,7 @@ class ExternalOptimizer final : public Optimizer {
       }
       told_.clear();
       for (const auto& t : state.at("told")) {
-        const int64_t id = t.at("id").get<int64_t>();
+        const int64_t id = internal::IntFromJson<int64_t>(t.at("id"), "id");
         const auto it = std::find_if(pending_.begin(), pending_.end(), [&](const Candidate& c) { return c.id == id; });
         if (it == pending_.end()) throw std::invalid_argument(fmt::format("told id {} was not asked", id));
         told_[id] = {id, it->x, internal::DoubleFromJson(t.at("value")), t.at("failed").get<bool>()};

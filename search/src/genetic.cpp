@@ -98,7 +98,7 @@ class Genetic final : public Optimizer {
   }
   void RestoreState(const nlohmann::json& state) override {
     rng_.Restore(state.at("rng"));
-    generation_ = state.at("generation").get<int>();
+    generation_ = internal::IntFromJson<int>(state.at("generation"), "generation");
     const size_t n = bounds_.lower.size();
     batch_.Restore(state.at("batch"), n);
     pop_x_ = internal::MatrixFromJson(state.at("population_x"), n, "population_x");

@@ -120,10 +120,10 @@ class Grid final : public Optimizer {
     return {{"asked", asked_}, {"told", told_}, {"level", level_}, {"counter", counter_}};
   }
   void RestoreState(const nlohmann::json& state) override {
-    asked_ = state.at("asked").get<int64_t>();
-    told_ = state.at("told").get<int64_t>();
-    level_ = state.at("level").get<int>();
-    counter_ = state.at("counter").get<std::vector<int>>();
+    asked_ = internal::IntFromJson<int64_t>(state.at("asked"), "asked");
+    told_ = internal::IntFromJson<int64_t>(state.at("told"), "told");
+    level_ = internal::IntFromJson<int>(state.at("level"), "level");
+    counter_ = internal::IntVectorFromJson<int>(state.at("counter"), "counter");
     if (counter_.size() != axes_.size()) throw std::invalid_argument("grid state: bad counter");
     if (!(0 <= told_ && told_ <= asked_ && asked_ <= budget_)) {
       throw std::invalid_argument(fmt::format(

@@ -54,8 +54,8 @@ class RandomSearch final : public Optimizer {
   }
   void RestoreState(const nlohmann::json& state) override {
     rng_.Restore(state.at("rng"));
-    asked_ = state.at("asked").get<int64_t>();
-    told_ = state.at("told").get<int64_t>();
+    asked_ = internal::IntFromJson<int64_t>(state.at("asked"), "asked");
+    told_ = internal::IntFromJson<int64_t>(state.at("told"), "told");
     if (!(0 <= told_ && told_ <= asked_ && asked_ <= options_.max_evals)) {
       throw std::invalid_argument(fmt::format(
           "random state: told {} and asked {} are not 0 <= told <= asked <= max_evals {}", told_,

@@ -1,5 +1,7 @@
 #include "calib/search/rng.h"
 
+#include "state_util.h"
+
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -82,9 +84,11 @@ void Rng::Restore(const nlohmann::json& state) {
     throw std::invalid_argument("Rng state: expected {\"xoshiro256\": [4 integers], ...}, found " +
                                 state.dump());
   }
-  for (int i = 0; i < 4; ++i) s_[i] = state["xoshiro256"][i].get<uint64_t>();
+  for (int i = 0; i < 4; ++i) {
+    s_[i] = internal::IntFromJson<uint64_t>(state["xoshiro256"][i], "xoshiro256");
+  }
   has_spare_ = state.at("has_spare").get<bool>();
-  const uint64_t spare_bits = state.at("spare_bits").get<uint64_t>();
+  const auto spare_bits = internal::IntFromJson<uint64_t>(state.at("spare_bits"), "spare_bits");
   std::memcpy(&spare_, &spare_bits, sizeof(spare_));
 }
 

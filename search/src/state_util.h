@@ -10,6 +10,8 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -43,6 +45,38 @@ inline std::vector<double> VectorFromJson(const nlohmann::json& j) {
   std::vector<double> v;
   v.reserve(j.size());
   for (const auto& e : j) v.push_back(DoubleFromJson(e));
+  return v;
+}
+
+// An integer of a saved state, as T; `what` names it in the error. A JSON
+// number that is not an integer (1e20 is read as a double) or does not fit
+// T is refused: nlohmann's get<T>() would convert it with undefined
+// behaviour or wrap it.
+template <class T>
+T IntFromJson(const nlohmann::json& j, const char* what) {
+  static_assert(std::is_integral_v<T>);
+  const bool fits =
+      j.is_number_unsigned()
+          ? j.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<T>::max())
+          : j.is_number_integer() && std::cmp_greater_equal(j.get<int64_t>(), std::numeric_limits<T>::min()) &&
+                std::cmp_less_equal(j.get<int64_t>(), std::numeric_limits<T>::max());
+  if (!fits) {
+    throw std::invalid_argument("state: " + std::string(what) + " = " + j.dump() +
+                                ": not an integer in [" + std::to_string(std::numeric_limits<T>::min()) +
+                                ", " + std::to_string(std::numeric_limits<T>::max()) + "]");
+  }
+  return j.get<T>();
+}
+
+// An array of integers of a saved state (IntFromJson for each).
+template <class T>
+std::vector<T> IntVectorFromJson(const nlohmann::json& j, const char* what) {
+  if (!j.is_array()) {
+    throw std::invalid_argument("state: " + std::string(what) + " = " + j.dump() + ": not an array");
+  }
+  std::vector<T> v;
+  v.reserve(j.size());
+  for (const auto& e : j) v.push_back(IntFromJson<T>(e, what));
   return v;
 }
 
@@ -154,7 +188,7 @@ struct Batch {
 
   // `dimension`: the search's; every point must have it.
   void Restore(const nlohmann::json& j, size_t dimension) {
-    first_id = j.at("first_id").get<int64_t>();
+    first_id = IntFromJson<int64_t>(j.at("first_id"), "first_id");
     x = MatrixFromJson(j.at("x"), dimension, "a point of the batch");
     value = VectorFromJson(j.at("value"));
     told.clear();
@@ -163,7 +197,7 @@ struct Batch {
       told.push_back(t.get<bool>() ? 1 : 0);
       told_count += told.back();
     }
-    asked = j.at("asked").get<int>();
+    asked = IntFromJson<int>(j.at("asked"), "asked");
     if (value.size() != x.size() || told.size() != x.size() || asked < 0 || asked > size()) {
       throw std::invalid_argument("state: batch sizes disagree");
     }

@@ -249,20 +249,54 @@ TEST(CheckedOptimizer, RestoreRefusesAPlugInPointOfAnotherDimension) {
   }
 }
 
+// A fresh optimiser `name` over the unit square, and the state of one that
+// was told one result.
+struct StateAfterOneResult {
+  std::function<CheckedOptimizer()> make;
+  nlohmann::json state;
+};
+StateAfterOneResult SaveAfterOneResult(const std::string& name, const nlohmann::json& settings) {
+  StateAfterOneResult saved;
+  saved.make = [=] { return MakeOptimizer(name, settings, testing::Box(2, 0, 1), 3); };
+  CheckedOptimizer opt = saved.make();
+  opt.Tell(testing::Evaluate(testing::Sphere, opt.Ask(1).at(0)));
+  saved.state = opt.SaveState();
+  return saved;
+}
+
+// `state` is refused with a message holding `fragment`.
+void ExpectRefused(const StateAfterOneResult& saved, const nlohmann::json& state,
+                   const std::string& fragment) {
+  const std::string error = RestoreError(saved.make(), state);
+  EXPECT_NE(error.find(fragment), std::string::npos) << error;
+}
+
+// An integer of a state written as a number that is not one (1.2e20 is read
+// as a double, which converts to an integer with undefined behaviour) is
+// refused naming the field (fuzz_checkpoint found it in the random
+// search's generator state).
+TEST(CheckedOptimizer, RestoreRefusesANonIntegerWhereItsStateHasAnInteger) {
+  const StateAfterOneResult saved = SaveAfterOneResult("random", {{"max_evals", 20}});
+  nlohmann::json huge = saved.state;
+  huge["plugin"]["rng"]["xoshiro256"][0] = 1.2e20;
+  ExpectRefused(saved, huge, "xoshiro256 = 1.2e+20: not an integer");
+  nlohmann::json fraction = saved.state;
+  fraction["next_id"] = 1.5;
+  ExpectRefused(saved, fraction, "next_id = 1.5: not an integer");
+  nlohmann::json negative = saved.state;
+  negative["plugin"]["rng"]["spare_bits"] = -1;
+  ExpectRefused(saved, negative, "spare_bits = -1: not an integer in [0, ");
+}
+
 // The cmaes state's vectors and matrices must be those of its dimension.
 TEST(CheckedOptimizer, RestoreRefusesACmaesStateOfAnotherShape) {
-  const auto make = [] {
-    return MakeOptimizer("cmaes", {{"max_evals", 40}}, testing::Box(2, 0, 1), 3);
-  };
-  CheckedOptimizer opt = make();
-  opt.Tell(testing::Evaluate(testing::Sphere, opt.Ask(1).at(0)));
-  const nlohmann::json saved = opt.SaveState();
-  nlohmann::json wrong_c = saved;
+  const StateAfterOneResult saved = SaveAfterOneResult("cmaes", {{"max_evals", 40}});
+  nlohmann::json wrong_c = saved.state;
   wrong_c["plugin"]["C"] = {{"rows", 3}, {"cols", 3}, {"data", std::vector<double>(9, 0.0)}};
-  EXPECT_NE(RestoreError(make(), wrong_c).find("not those of 2 dimensions"), std::string::npos);
-  nlohmann::json negative = saved;
+  ExpectRefused(saved, wrong_c, "not those of 2 dimensions");
+  nlohmann::json negative = saved.state;
   negative["plugin"]["mean"] = {{"rows", -2}, {"cols", -1}, {"data", {0.5, 0.5}}};
-  EXPECT_NE(RestoreError(make(), negative).find("a -2 x -1 matrix with 2 values"), std::string::npos);
+  ExpectRefused(saved, negative, "a -2 x -1 matrix with 2 values");
 }
 
 // The state fuzz_checkpoint found: the grid's own part counts more told
