@@ -126,6 +126,24 @@ host_list() {  # HOST:SLOTS,... of the hosts given
   (IFS=,; echo "${out[*]}")
 }
 
+# Waits until `calib results` no longer calls the job running (its lock's
+# holder has ended or gone stale); false after release_timeout seconds. It
+# asks on the first host, where the manager ran: there a holder's process
+# that has ended is seen at once (elsewhere only its heartbeat, stale after
+# 60 s, tells).
+release_timeout=120
+wait_for_release() {
+  local t status
+  for ((t = 0; t < release_timeout; t += 2)); do
+    status=$(timeout "$probe_timeout" "$mpirun" "${mpirun_args[@]}" -H "${hosts[0]}:1" -np 1 \
+               "$calib" results "$job" "${lookup_args[@]}" 2>/dev/null |
+             awk '/^status:/ {print $2; exit}')
+    [[ $status == running* ]] || return 0
+    sleep 2
+  done
+  return 1
+}
+
 restarts=0
 verb=run
 "$calib" results "$job" "${lookup_args[@]}" >/dev/null 2>&1 && verb=resume
@@ -169,6 +187,13 @@ while true; do
       lost+=("${hosts[k]}")
     fi
   done
+  # The old manager may outlive mpirun for a moment (its host's daemon ends
+  # it), and one on a dead host holds the job's lock until its heartbeat is
+  # stale (60 s): resume once the job is no longer running.
+  if ! wait_for_release; then
+    log "mpirun exit $rc and the job stays held by a live process after ${release_timeout} s"
+    exit 5
+  fi
   if [[ ${#live_hosts[@]} -eq 0 ]]; then
     log "mpirun exit $rc and no host answers: the job stays resumable"
     exit 5
