@@ -37,16 +37,18 @@ struct Segmented {
   std::vector<BitMask> masks;
 };
 
-/// The loaded and segmented recording (default options, no disk cache),
-/// computed once per process and shared by the tests below, which only read
-/// it.
+/// The loaded and segmented recording (default options), computed once per
+/// process and shared by the tests below, which only read it. ctest runs
+/// each test in a process of its own: the masks go through the build's
+/// segmentation cache, so that the video is decoded and segmented once per
+/// recording, not once per test.
 const Segmented& LoadAndSegment(const std::string& name) {
   static std::map<std::string, Segmented> done;
   auto it = done.find(name);
   if (it == done.end()) {
     Segmented s;
     s.recording = LoadRecording(RealRecordingDir(name));
-    s.masks = SegmentRecording(s.recording, SegmentationOptions(), {});
+    s.masks = SegmentRecording(s.recording, SegmentationOptions(), CALIB_TEST_CACHE_DIR);
     it = done.emplace(name, std::move(s)).first;
   }
   return it->second;
