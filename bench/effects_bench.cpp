@@ -8,12 +8,18 @@
 //     strain_stiffening>  with the implicit first-order step (the loop's):
 //     what the rest-stiffness probe and the per-frame re-linearisation of
 //     the stiffening springs cost
+//   BM_FullEvaluationWithEffect/loop/<none, effect>  with the loop's
+//     simulation options (LoopSimulationDefaults: the implicit step,
+//     contacts held in its solve with friction, outline contact): each
+//     effect's cost where the loop adds it (issue: at most 1.5 times
+//     loop/none). With inertia the step is the effect's own second-order one.
 //
 //   build/bench/calib_bench --benchmark_filter=WithEffect
 
 #include <benchmark/benchmark.h>
 
 #include "calib/core/effects.h"
+#include "calib/discovery/loop.h"
 #include "reference_scene.h"
 
 namespace calib::bench {
@@ -88,6 +94,11 @@ const bool kRegistered = [] {
   add("implicit/none", ModelDefinition{}, implicit);
   add("implicit/uneven_stiffness", ModelDefinition{{"uneven_stiffness"}}, implicit);
   add("implicit/strain_stiffening", ModelDefinition{{"strain_stiffening"}}, implicit);
+  const SimulationOptions loop = LoopSimulationDefaults();
+  add("loop/none", ModelDefinition{}, loop);
+  for (const EffectInfo& info : EffectTermCatalogue()) {
+    add("loop/" + info.name, ModelDefinition{{info.name}}, loop);
+  }
   return true;
 }();
 
