@@ -123,7 +123,7 @@ class Annealing final : public Optimizer {
     next_id_ = internal::IntFromJson<int64_t>(s.at("next_id"), "next_id");
     evals_ = internal::IntFromJson<int64_t>(s.at("evals"), "evals");
     const auto n = static_cast<size_t>(n_);
-    batch_.Restore(s.at("batch"), n);
+    batch_.Restore(s.at("batch"), bounds_);
     batch_u_ = internal::MatrixFromJson(s.at("batch_u"), n, "batch_u");
     if (batch_u_.size() != static_cast<size_t>(batch_.size())) {
       throw std::invalid_argument("annealing state: batch_u and the batch differ in size");

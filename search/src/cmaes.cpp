@@ -139,7 +139,7 @@ class Cmaes final : public Optimizer {
                    B = MatrixFrom(s.at("B")), D = MatrixFrom(s.at("D")),
                    ps = MatrixFrom(s.at("ps")), pc = MatrixFrom(s.at("pc")),
                    samples = MatrixFrom(s.at("samples"));
-    batch_.Restore(s.at("batch"), static_cast<size_t>(n_));
+    batch_.Restore(s.at("batch"), bounds_);
     // The vectors n x 1, the matrices n x n, the samples one column per
     // candidate of the batch in progress (between generations they are the
     // last one's, unused until the next is sampled).

@@ -99,9 +99,8 @@ class Genetic final : public Optimizer {
   void RestoreState(const nlohmann::json& state) override {
     rng_.Restore(state.at("rng"));
     generation_ = internal::IntFromJson<int>(state.at("generation"), "generation");
-    const size_t n = bounds_.lower.size();
-    batch_.Restore(state.at("batch"), n);
-    pop_x_ = internal::MatrixFromJson(state.at("population_x"), n, "population_x");
+    batch_.Restore(state.at("batch"), bounds_);
+    pop_x_ = internal::PointsInBoxFromJson(state.at("population_x"), bounds_, "population_x");
     pop_f_ = internal::VectorFromJson(state.at("population_f"), pop_x_.size(), "population_f");
   }
 

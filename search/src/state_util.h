@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "calib/search/types.h"
@@ -111,6 +112,25 @@ inline std::vector<std::vector<double>> MatrixFromJson(const nlohmann::json& j, 
   return m;
 }
 
+// Points of a saved state that must lie in the search's box (NaN does
+// not); `what` names them in the error.
+inline std::vector<std::vector<double>> PointsInBoxFromJson(const nlohmann::json& j,
+                                                            const Bounds& bounds,
+                                                            const std::string& what) {
+  std::vector<std::vector<double>> points =
+      MatrixFromJson(j, bounds.lower.size(), ("a point of " + what).c_str());
+  for (size_t k = 0; k < points.size(); ++k) {
+    for (size_t i = 0; i < points[k].size(); ++i) {
+      if (!(points[k][i] >= bounds.lower[i] && points[k][i] <= bounds.upper[i])) {
+        throw std::invalid_argument(fmt::format("state: point {} of {} has x[{}] = {}, outside [{}, {}]",
+                                                k, what, i, points[k][i], bounds.lower[i],
+                                                bounds.upper[i]));
+      }
+    }
+  }
+  return points;
+}
+
 // Maps box-normalised u in [0, 1]^n to the box, clamped so rounding never
 // leaves it.
 inline std::vector<double> FromUnit(const Bounds& b, const std::vector<double>& u) {
@@ -186,10 +206,10 @@ struct Batch {
             {"told", told_json},    {"asked", asked}};
   }
 
-  // `dimension`: the search's; every point must have it.
-  void Restore(const nlohmann::json& j, size_t dimension) {
+  // Every point must lie in `bounds` (the search's box), asked or not.
+  void Restore(const nlohmann::json& j, const Bounds& bounds) {
     first_id = IntFromJson<int64_t>(j.at("first_id"), "first_id");
-    x = MatrixFromJson(j.at("x"), dimension, "a point of the batch");
+    x = PointsInBoxFromJson(j.at("x"), bounds, "the batch");
     value = VectorFromJson(j.at("value"));
     told.clear();
     told_count = 0;
