@@ -13,7 +13,11 @@
 // with -ffp-contract=off (core/CMakeLists.txt), so no FMA changes a bit.
 // tests/core/constraints_test.cpp holds them to the plain loops.
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+// Not under ThreadSanitizer: the clones' resolver runs while the program is
+// relocated, before the sanitizer's runtime is up, and its instrumented
+// entry crashes every program that links this file.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(__SANITIZE_THREAD__)
 #define CALIB_SCAN_TARGETS __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define CALIB_SCAN_TARGETS
