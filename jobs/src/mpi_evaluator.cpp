@@ -70,7 +70,8 @@ class Reader {
     if (n > bytes_.size()) Need(n);  // before n * sizeof(T) can overflow
     Need(n * sizeof(T));
     std::vector<T> values(n);
-    std::memcpy(values.data(), bytes_.data() + pos_, n * sizeof(T));
+    // An empty vector's data() may be null, which memcpy may not be given.
+    if (n > 0) std::memcpy(values.data(), bytes_.data() + pos_, n * sizeof(T));
     pos_ += n * sizeof(T);
     return values;
   }
