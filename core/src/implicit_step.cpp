@@ -28,6 +28,7 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   solution_.setZero(m);
   turn_.setZero(m);
   inverse_turn_.setZero(m);
+  solve_scratch_.assign(2 * static_cast<size_t>(m), 0.0);
   inverse_column_of_unknown_.assign(m, -1);
   inverse_columns_.reserve(static_cast<size_t>(m) *
                            std::min(m, 4 * kMaxActiveContacts));  // a finger's and a pencil's
@@ -40,7 +41,7 @@ bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
   configured_params_ = params;
   configured_h_ = h;
   ForgetSolves();
-  shape_active_ = false;
+  factor_view_ = {};
   if (assembly_.lower().rows() == 0) return true;
   factor_.factorize(assembly_.lower());
   return Factorized(factor_, params, h, error);
@@ -54,8 +55,12 @@ void ImplicitFirstOrderStep::ForgetSolves() {
 
 template <class Factor>
 bool ImplicitFirstOrderStep::Factorized(const Factor& factor, const ModelParameters& params,
-                                        double h, std::string* error) const {
-  if (factor.info() == Eigen::Success && factor.vectorD().minCoeff() > 0.0) return true;
+                                        double h, std::string* error) {
+  if (factor.info() == Eigen::Success && factor.vectorD().minCoeff() > 0.0) {
+    factor_view_ = ldlt::ViewOf(factor, &inverse_d_);
+    return true;
+  }
+  factor_view_ = {};
   if (error != nullptr) {
     *error = fmt::format(
         "implicit first-order step: m / h + K0 + k_d / h D0 is not positive definite "
@@ -68,7 +73,7 @@ bool ImplicitFirstOrderStep::Factorized(const Factor& factor, const ModelParamet
 
 bool ImplicitFirstOrderStep::FinishShapeStiffness(std::string* error) {
   ForgetSolves();
-  shape_active_ = true;
+  factor_view_ = {};
   if (assembly_.upper().rows() == 0) return true;
   shape_factor_.factorize(assembly_.upper());
   if (!Factorized(shape_factor_, configured_params_, configured_h_, error)) {
@@ -122,13 +127,21 @@ void ImplicitFirstOrderStep::Step(std::span<const Vec2> f, std::span<Vec2> x,
   }
   const double f_dot_turn = turn_norm_sq_ > 0.0 ? rhs_.dot(turn_) : 0.0;
   if (f_dot_turn != 0.0) rhs_ -= (f_dot_turn / turn_norm_sq_) * turn_;
-  Solve(rhs_, solution_);
+  solution_ = rhs_;
+  if (!contacts.empty() && turn_norm_sq_ > 0.0) {
+    // The contacts' responses need A^-1 turn_ for this step's turn: solved
+    // beside the step's own right-hand side, in one pass.
+    inverse_turn_ = turn_;
+    ldlt::SolveInPlace2(factor_view_, solution_.data(), inverse_turn_.data(),
+                        solve_scratch_.data());
+    inverse_turn_valid_ = true;
+  } else {
+    ldlt::SolveInPlace(factor_view_, solution_.data());
+    inverse_turn_valid_ = false;
+  }
   FinishResponse(f_dot_turn, solution_);
   const Eigen::VectorXd* dx = &solution_;
-  if (!contacts.empty()) {
-    inverse_turn_valid_ = false;  // A^-1 turn_ for this step's turn
-    dx = &contacts_.Solve(contacts, friction, solution_, *this);
-  }
+  if (!contacts.empty()) dx = &contacts_.Solve(contacts, friction, solution_, *this);
   for (int k = 0; k < m; ++k) {
     const int c = coordinate_of_unknown[k];
     x[c / 2][c % 2] += (*dx)[k];

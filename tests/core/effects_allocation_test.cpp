@@ -4,32 +4,9 @@
 
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
-
 #include "calib/core/simulator.h"
+#include "support/allocation_counter.h"
 #include "support/test_support.h"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-// The nothrow forms too, so that a sanitizer's own nothrow new never pairs
-// with the free() here (tests/support/allocation_counter.h).
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  return std::malloc(size == 0 ? 1 : size);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
 
 namespace calib {
 namespace {
@@ -49,14 +26,13 @@ ParameterValues FirstOrderEffectValues() {
 
 // Frames run with the allocation counter on; expects a finished run.
 int64_t AllocationsWhileRunning(Simulator& sim, int expected_frames) {
-  g_allocations = 0;
-  g_counting = true;
+  const int64_t before = testing::Allocations();
   int frames = 0;
   while (sim.Advance()) ++frames;
-  g_counting = false;
+  const int64_t during = testing::Allocations() - before;
   EXPECT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
   EXPECT_EQ(frames, expected_frames);
-  return g_allocations.load();
+  return during;
 }
 
 TEST(EffectsAllocation, NoAllocationPerSubstepWithEveryEffect) {

@@ -6,7 +6,9 @@
 
 #include "calib/core/constraints.h"
 #include "calib/core/effects.h"
+#include "calib/core/implicit_assembly.h"
 #include "calib/core/implicit_step.h"
+#include "calib/core/ldlt_solve.h"
 #include "calib/core/simulator.h"
 
 #include "support/test_support.h"
@@ -16,6 +18,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
 namespace calib {
@@ -681,6 +684,61 @@ TEST(ImplicitStepContacts, ANodeThatJumpsHalfAnEdgeInOneSubstepFailsTheCandidate
   EXPECT_NE(sim.failure_reason().find("moved node "), std::string::npos) << sim.failure_reason();
   EXPECT_NE(sim.failure_reason().find("snapped through"), std::string::npos) << sim.failure_reason();
   EXPECT_EQ(sim.failure_frame(), 2);
+}
+
+// The step's solves over the factor's raw arrays (ldlt_solve.h) give
+// SimplicialLDLT::solve's bits: for dense right-hand sides, for unit
+// vectors (the contacts' columns: the forward pass skips zeros), and two at
+// once in every combination of zero and non-zero entries.
+TEST(LdltSolve, GivesTheFactorsOwnSolveBitForBitAloneAndInPairs) {
+  const Mesh mesh = MakeGridMesh(9, 6, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  std::vector<double> movable(mesh.NumNodes(), 1.0);
+  movable[3] = 0.0;
+  ImplicitStepAssembly assembly(model, movable, /*edge_stiffness=*/false);
+  assembly.Assemble(Mixed(), 1.0 / 300.0, nullptr);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>>
+      factor(assembly.lower());
+  ASSERT_EQ(factor.info(), Eigen::Success);
+  std::vector<double> inverse_d;
+  const ldlt::FactorView view = ldlt::ViewOf(factor, &inverse_d);
+  const int m = assembly.num_unknowns();
+  ASSERT_EQ(view.n, m);
+
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Eigen::VectorXd> rhs;
+  for (int r = 0; r < 3; ++r) {
+    rhs.emplace_back(m);
+    for (int k = 0; k < m; ++k) rhs.back()[k] = u(rng);
+  }
+  for (int k : {0, m / 2, m - 1}) rhs.push_back(Eigen::VectorXd::Unit(m, k));
+  Eigen::VectorXd sparse = rhs[0];  // zeros scattered among values
+  for (int k = 0; k < m; k += 3) sparse[k] = 0.0;
+  rhs.push_back(sparse);
+  rhs.push_back(Eigen::VectorXd::Zero(m));
+
+  const auto same_bits = [m](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(m)) == 0;
+  };
+  std::vector<double> scratch(2 * static_cast<size_t>(m));
+  for (size_t i = 0; i < rhs.size(); ++i) {
+    const Eigen::VectorXd expected = factor.solve(rhs[i]);
+    Eigen::VectorXd got = rhs[i];
+    ldlt::SolveInPlace(view, got.data());
+    EXPECT_TRUE(same_bits(got, expected)) << "right-hand side " << i;
+    for (size_t j = 0; j < rhs.size(); ++j) {
+      Eigen::VectorXd x = rhs[i], y = rhs[j];
+      ldlt::SolveInPlace2(view, x.data(), y.data(), scratch.data());
+      EXPECT_TRUE(same_bits(x, expected)) << "right-hand sides " << i << " and " << j;
+      EXPECT_TRUE(same_bits(y, factor.solve(rhs[j]))) << "right-hand sides " << i << " and " << j;
+    }
+  }
+  // And the solves solve: A x = b.
+  const Eigen::SparseMatrix<double> a = assembly.lower().selfadjointView<Eigen::Lower>();
+  Eigen::VectorXd x = rhs[0];
+  ldlt::SolveInPlace(view, x.data());
+  EXPECT_LT((a * x - rhs[0]).norm(), 1e-10 * rhs[0].norm());
 }
 
 }  // namespace

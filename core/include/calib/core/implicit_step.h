@@ -53,6 +53,7 @@
 #include "calib/core/contact_active_set.h"
 #include "calib/core/effects.h"
 #include "calib/core/implicit_assembly.h"
+#include "calib/core/ldlt_solve.h"
 #include "calib/core/model.h"
 #include "calib/core/parameters.h"
 #include "calib/core/step_contact.h"
@@ -145,24 +146,24 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
   ImplicitStepAssembly assembly_;
   // The factors of the step's matrix A as configured (assembly_.lower())
   // and as re-linearised at a shape (assembly_.upper()), their patterns
-  // analysed once. shape_active_: the last factorisation was
-  // FinishShapeStiffness's.
+  // analysed once.
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> factor_;
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Upper, Eigen::NaturalOrdering<int>> shape_factor_;
-  bool shape_active_ = false;
+  // The last successful factorisation's arrays (ldlt_solve.h: the factor's
+  // own solve, bit for bit) and its 1 / D.
+  ldlt::FactorView factor_view_;
+  std::vector<double> inverse_d_;
+  std::vector<double> solve_scratch_;  // 2 m: SolveInPlace2's
   // dest = A^-1 rhs with the current factor.
   template <class Rhs, class Dest>
   void Solve(const Rhs& rhs, Dest&& dest) const {
-    if (shape_active_) {
-      dest = shape_factor_.solve(rhs);
-    } else {
-      dest = factor_.solve(rhs);
-    }
+    dest = rhs;
+    ldlt::SolveInPlace(factor_view_, dest.data());
   }
   void ForgetSolves();  // the cached columns of A^-1 belong to the old matrix
   template <class Factor>
   bool Factorized(const Factor& factor, const ModelParameters& params, double h,
-                  std::string* error) const;
+                  std::string* error);  // and views the factor
   ModelParameters configured_params_;
   double configured_h_ = 0.0;
   Eigen::VectorXd rhs_, solution_;
