@@ -19,7 +19,9 @@ function(calib_add_test name)
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPENDS} calib_test_support GTest::gtest_main)
   target_compile_options(${name} PRIVATE -Wall -Wextra)
-  set(properties ENVIRONMENT "CALIB_SHARED_DIR=${CALIB_SHARED_DIR}")
+  # LABELS gtest: scripts/sanitize.sh runs these programs itself and the
+  # other tests (ctest -LE gtest) through ctest.
+  set(properties ENVIRONMENT "CALIB_SHARED_DIR=${CALIB_SHARED_DIR}" LABELS gtest)
   if(ARG_TIMEOUT)
     list(APPEND properties TIMEOUT ${ARG_TIMEOUT})
   endif()
