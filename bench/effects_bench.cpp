@@ -25,11 +25,6 @@
 namespace calib::bench {
 namespace {
 
-const PreparedRecording& Scene() {
-  static const PreparedRecording prepared = MakeReferenceScene();
-  return prepared;
-}
-
 // The reference parameters plus a value for every effect's parameters under
 // which each effect does something on the reference scene and the run ends
 // ok (a top view: no gravity; the push peaks at 2 force units).
@@ -61,15 +56,15 @@ ParameterValues ValuesFor(const ModelDefinition& model) {
 
 void FullEvaluationWithEffects(benchmark::State& state, const ModelDefinition& model,
                                const SimulationOptions& options) {
-  Evaluator evaluator(Scene(), options, model);
+  Evaluator evaluator(ReferenceScene(), options, model);
   const ParameterValues values = ValuesFor(model);
   for (auto _ : state) {
     const EvaluationResult result = evaluator.Evaluate(values);
     if (!result.ok()) state.SkipWithError(result.failure_reason.c_str());
     benchmark::DoNotOptimize(result.xor_sum);
   }
-  state.counters["frames"] = Scene().scene.num_frames;
-  state.counters["nodes"] = Scene().mesh.NumNodes();
+  state.counters["frames"] = ReferenceScene().scene.num_frames;
+  state.counters["nodes"] = ReferenceScene().mesh.NumNodes();
 }
 
 const bool kRegistered = [] {

@@ -14,13 +14,8 @@
 namespace calib::bench {
 namespace {
 
-const PreparedRecording& Scene() {
-  static const PreparedRecording prepared = MakeReferenceScene();
-  return prepared;
-}
-
 void SetMeshCounters(benchmark::State& state) {
-  const Mesh& mesh = Scene().mesh;
+  const Mesh& mesh = ReferenceScene().mesh;
   state.counters["nodes"] = mesh.NumNodes();
   state.counters["edges"] = mesh.NumEdges();
   state.counters["triangles"] = mesh.NumTriangles();
@@ -33,7 +28,7 @@ void BM_FullEvaluation(benchmark::State& state) {
   SimulationOptions options;
   options.outline_contact = state.range(0) != 0;
   if (state.range(1) != 0) options.integrator = IntegratorKind::kImplicitFirstOrder;
-  Evaluator evaluator(Scene(), options);
+  Evaluator evaluator(ReferenceScene(), options);
   const ModelParameters params = ReferenceParameters();
   for (auto _ : state) {
     const EvaluationResult result = evaluator.Evaluate(params);
@@ -41,7 +36,7 @@ void BM_FullEvaluation(benchmark::State& state) {
     benchmark::DoNotOptimize(result.xor_sum);
   }
   SetMeshCounters(state);
-  state.counters["frames"] = Scene().scene.num_frames;
+  state.counters["frames"] = ReferenceScene().scene.num_frames;
 }
 BENCHMARK(BM_FullEvaluation)
     ->ArgNames({"outline_contact", "implicit"})
@@ -52,7 +47,7 @@ BENCHMARK(BM_FullEvaluation)
 void BM_Substep(benchmark::State& state) {
   SimulationOptions options;
   if (state.range(0) != 0) options.integrator = IntegratorKind::kImplicitFirstOrder;
-  Simulator simulator(Scene().mesh, Scene().scene, options);
+  Simulator simulator(ReferenceScene().mesh, ReferenceScene().scene, options);
   simulator.Reset(ReferenceParameters());
   // Move to a loaded frame so the finger is in contact.
   for (int f = 0; f < 100; ++f) simulator.Advance();
@@ -69,7 +64,7 @@ BENCHMARK(BM_Substep)->ArgName("implicit")->DenseRange(0, 1)->Unit(benchmark::kM
 void BM_ImplicitReset(benchmark::State& state) {
   SimulationOptions options;
   options.integrator = IntegratorKind::kImplicitFirstOrder;
-  Simulator simulator(Scene().mesh, Scene().scene, options);
+  Simulator simulator(ReferenceScene().mesh, ReferenceScene().scene, options);
   const ModelParameters params = ReferenceParameters();
   for (auto _ : state) {
     simulator.Reset(params);
@@ -82,7 +77,7 @@ BENCHMARK(BM_ImplicitReset)->Unit(benchmark::kMicrosecond);
 // The internal forces alone, with a workspace as the simulator keeps one
 // (no allocation per call), on the kernel kAuto picks.
 void ForcesWithKernel(benchmark::State& state, ForceKernel kernel) {
-  const Mesh& mesh = Scene().mesh;
+  const Mesh& mesh = ReferenceScene().mesh;
   const Model model(mesh);
   ForceWorkspace workspace = model.MakeWorkspace();
   std::vector<Vec2> x = mesh.rest_positions, v(x.size(), Vec2(0.1, -0.2)), f(x.size());
@@ -121,7 +116,7 @@ BENCHMARK(BM_ForcesKernel)->DenseRange(0, 2)->Unit(benchmark::kMicrosecond);
 // (1.3, -0.7) px, its sides along rows and columns; 1 the mesh the finger
 // has dented by frame 100, as evaluations see it).
 void BM_ScoreFrame(benchmark::State& state) {
-  const PreparedRecording& prepared = Scene();
+  const PreparedRecording& prepared = ReferenceScene();
   const bool coverage = state.range(0) != 0;
   std::vector<Vec2> x = prepared.mesh.rest_positions;
   if (state.range(1) != 0) {

@@ -56,6 +56,11 @@ PreparedRecording MakeReferenceScene(const ReferenceSceneOptions& options) {
   return prepared;
 }
 
+const PreparedRecording& ReferenceScene() {
+  static const PreparedRecording prepared = MakeReferenceScene();
+  return prepared;
+}
+
 const PreparedRecording& ShortReferenceScene() {
   static const PreparedRecording prepared = [] {
     ReferenceSceneOptions options;

@@ -22,6 +22,10 @@ struct ReferenceSceneOptions {
 /// A PreparedRecording with no video behind it.
 PreparedRecording MakeReferenceScene(const ReferenceSceneOptions& options = {});
 
+/// The reference scene with the default options, built once per process
+/// and shared read-only.
+const PreparedRecording& ReferenceScene();
+
 /// The first 60 frames of the reference scene, built once per process and
 /// shared read-only (tests that need a real scene but not all of it).
 const PreparedRecording& ShortReferenceScene();

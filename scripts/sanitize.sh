@@ -48,7 +48,7 @@ jobs="$(nproc)"
 case "$kind" in
   address)
     build=build-asan
-    cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" \
+    cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DCMAKE_UNITY_BUILD=ON \
       -DCALIB_WERROR=ON -DCALIB_SANITIZE=address,undefined -DCALIB_BUILD_BENCHMARKS=OFF >/dev/null
     cmake --build "$build" -j"$jobs"
     # allocator_may_return_null: an allocation too large throws std::bad_alloc
@@ -116,7 +116,7 @@ case "$kind" in
     ;;
   thread)
     build=build-tsan
-    cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" \
+    cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DCMAKE_UNITY_BUILD=ON \
       -DCALIB_WERROR=ON -DCALIB_SANITIZE=thread -DCALIB_BUILD_BENCHMARKS=OFF >/dev/null
     # CI: the runner's and pruning's tests in one process (threads), not the
     # MPI run through the command line, which needs every library and the

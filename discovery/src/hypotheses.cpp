@@ -499,7 +499,7 @@ bool Ranked(const Hypothesis& x, const Hypothesis& y, const std::vector<std::str
          std::find(catalogue.begin(), catalogue.end(), y.effect);
 }
 
-[[noreturn]] void Bad(const std::string& key, const std::string& what) {
+[[noreturn]] void BadHypothesisKey(const std::string& key, const std::string& what) {
   throw std::invalid_argument(fmt::format("hypothesis JSON: key '{}': {}", key, what));
 }
 
@@ -613,20 +613,20 @@ json ToJson(const Hypothesis& h) {
 }
 
 Hypothesis HypothesisFromJson(const json& doc) {
-  if (!doc.is_object()) Bad("(root)", "expected an object");
+  if (!doc.is_object()) BadHypothesisKey("(root)", "expected an object");
   auto need = [&](const json& j, const char* key) -> const json& {
-    if (!j.contains(key)) Bad(key, "missing");
+    if (!j.contains(key)) BadHypothesisKey(key, "missing");
     return j.at(key);
   };
   auto number = [&](const json& j, const char* key) {
     const json& v = need(j, key);
     if (v.is_null()) return static_cast<double>(NAN);
-    if (!v.is_number()) Bad(key, "expected a number");
+    if (!v.is_number()) BadHypothesisKey(key, "expected a number");
     return v.get<double>();
   };
   auto text = [&](const json& j, const char* key) {
     const json& v = need(j, key);
-    if (!v.is_string()) Bad(key, "expected a string");
+    if (!v.is_string()) BadHypothesisKey(key, "expected a string");
     return v.get<std::string>();
   };
   Hypothesis h;
@@ -635,15 +635,15 @@ Hypothesis HypothesisFromJson(const json& doc) {
   h.applicability = number(doc, "applicability");
   h.summary = text(doc, "summary");
   const json& ev = need(doc, "evidence");
-  if (!ev.is_array()) Bad("evidence", "expected an array");
+  if (!ev.is_array()) BadHypothesisKey("evidence", "expected an array");
   for (const json& e : ev) {
     h.evidence.push_back(
         {text(e, "signature"), number(e, "value"), number(e, "support"), text(e, "statement")});
   }
   const json& rec = need(doc, "recordings");
-  if (!rec.is_array()) Bad("recordings", "expected an array");
+  if (!rec.is_array()) BadHypothesisKey("recordings", "expected an array");
   for (const json& r : rec) {
-    if (!r.is_string()) Bad("recordings", "expected strings");
+    if (!r.is_string()) BadHypothesisKey("recordings", "expected strings");
     h.recordings.push_back(r.get<std::string>());
   }
   return h;

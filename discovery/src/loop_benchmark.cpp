@@ -24,7 +24,7 @@ namespace fs = std::filesystem;
 
 std::string AbsolutePath(const fs::path& p) { return fs::absolute(p).lexically_normal().string(); }
 
-bool Contains(const std::vector<std::string>& list, const std::string& s) {
+bool Lists(const std::vector<std::string>& list, const std::string& s) {
   return std::find(list.begin(), list.end(), s) != list.end();
 }
 
@@ -71,7 +71,7 @@ bool LoopBenchmarkOptions::IsValid(std::string* error) const {
                     limit_per_cell));
   }
   const std::vector<std::string> optimizers = search::OptimizerNames();
-  if (!Contains(optimizers, loop.optimizer)) {
+  if (!Lists(optimizers, loop.optimizer)) {
     return fail(fmt::format("loop benchmark: --optimizer {}: unknown (known: {})", loop.optimizer,
                             fmt::join(optimizers, ", ")));
   }
@@ -85,16 +85,16 @@ std::vector<FamilyObject> SelectFamilyObjects(const FamilyManifest& manifest,
   std::vector<std::string> ids, known_cells;
   for (const FamilyObject& o : manifest.objects) {
     ids.push_back(o.id);
-    if (!Contains(known_cells, o.cell)) known_cells.push_back(o.cell);
+    if (!Lists(known_cells, o.cell)) known_cells.push_back(o.cell);
   }
   for (const std::string& id : only) {
-    if (!Contains(ids, id)) {
+    if (!Lists(ids, id)) {
       throw std::invalid_argument(fmt::format("--only {}: no such object in {}", id,
                                               (manifest.dir / "family.json").string()));
     }
   }
   for (const std::string& cell : cells) {
-    if (!Contains(known_cells, cell)) {
+    if (!Lists(known_cells, cell)) {
       throw std::invalid_argument(fmt::format("--cells {}: no such cell in {} (cells: {})", cell,
                                               (manifest.dir / "family.json").string(),
                                               fmt::join(known_cells, ", ")));
@@ -103,8 +103,8 @@ std::vector<FamilyObject> SelectFamilyObjects(const FamilyManifest& manifest,
   std::vector<FamilyObject> selected;
   std::map<std::string, int> per_cell;
   for (const FamilyObject& o : manifest.objects) {
-    if (!only.empty() && !Contains(only, o.id)) continue;
-    if (!cells.empty() && !Contains(cells, o.cell)) continue;
+    if (!only.empty() && !Lists(only, o.id)) continue;
+    if (!cells.empty() && !Lists(cells, o.cell)) continue;
     if (limit_per_cell > 0 && per_cell[o.cell] >= limit_per_cell) continue;
     ++per_cell[o.cell];
     selected.push_back(o);

@@ -20,7 +20,7 @@ namespace {
 
 using nlohmann::json;
 
-[[noreturn]] void Bad(const std::string& key, const std::string& what) {
+[[noreturn]] void BadReportKey(const std::string& key, const std::string& what) {
   throw std::invalid_argument(fmt::format("loop report JSON: key '{}': {}", key, what));
 }
 
@@ -28,50 +28,50 @@ using nlohmann::json;
 class In {
  public:
   In(const json& j, std::string path) : j_(j), path_(std::move(path)) {
-    if (!j_.is_object()) Bad(path_, "expected an object");
+    if (!j_.is_object()) BadReportKey(path_, "expected an object");
   }
   const json& Raw(const char* key) const {
-    if (!j_.contains(key)) Bad(Path(key), "missing");
+    if (!j_.contains(key)) BadReportKey(Path(key), "missing");
     return j_.at(key);
   }
   std::string Path(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
   std::string Text(const char* key) const {
     const json& v = Raw(key);
-    if (!v.is_string()) Bad(Path(key), "expected a string");
+    if (!v.is_string()) BadReportKey(Path(key), "expected a string");
     return v.get<std::string>();
   }
   double Num(const char* key) const {
     const json& v = Raw(key);
     if (v.is_null()) return NAN;
-    if (!v.is_number()) Bad(Path(key), "expected a number");
+    if (!v.is_number()) BadReportKey(Path(key), "expected a number");
     return v.get<double>();
   }
   int64_t Int(const char* key) const {
     const json& v = Raw(key);
-    if (!v.is_number_integer()) Bad(Path(key), "expected an integer");
+    if (!v.is_number_integer()) BadReportKey(Path(key), "expected an integer");
     return v.get<int64_t>();
   }
   bool Bool(const char* key) const {
     const json& v = Raw(key);
-    if (!v.is_boolean()) Bad(Path(key), "expected true or false");
+    if (!v.is_boolean()) BadReportKey(Path(key), "expected true or false");
     return v.get<bool>();
   }
   uint64_t UInt(const char* key) const {
     const json& v = Raw(key);
     if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<int64_t>() >= 0)) {
-      Bad(Path(key), "expected a non-negative integer");
+      BadReportKey(Path(key), "expected a non-negative integer");
     }
     return v.get<uint64_t>();
   }
   const json& Array(const char* key) const {
     const json& v = Raw(key);
-    if (!v.is_array()) Bad(Path(key), "expected an array");
+    if (!v.is_array()) BadReportKey(Path(key), "expected an array");
     return v;
   }
   std::vector<std::string> Texts(const char* key) const {
     std::vector<std::string> out;
     for (const json& e : Array(key)) {
-      if (!e.is_string()) Bad(Path(key), "expected strings");
+      if (!e.is_string()) BadReportKey(Path(key), "expected strings");
       out.push_back(e.get<std::string>());
     }
     return out;
@@ -93,7 +93,7 @@ std::vector<double> OptionalNumbers(const In& in, const json& j, const std::stri
   std::vector<double> out;
   if (!j.contains(key)) return out;
   for (const json& v : in.Array(key.c_str())) {
-    if (!v.is_number() && !v.is_null()) Bad(in.Path(key), "expected numbers");
+    if (!v.is_number() && !v.is_null()) BadReportKey(in.Path(key), "expected numbers");
     out.push_back(v.is_null() ? NAN : v.get<double>());
   }
   return out;
@@ -123,7 +123,7 @@ RecordingScore ErrorFromJson(const json& j, const std::string& path) {
   e.xor_sum = in.Num("xor_sum");
   e.mean_iou = in.Num("mean_iou");
   for (const json& v : in.Array("frame_xor")) {
-    if (!v.is_number()) Bad(in.Path("frame_xor"), "expected numbers");
+    if (!v.is_number()) BadReportKey(in.Path("frame_xor"), "expected numbers");
     e.frame_xor.push_back(v.get<double>());
   }
   for (const json& v : in.Array("frame_iou")) {
@@ -136,7 +136,7 @@ RecordingScore ErrorFromJson(const json& j, const std::string& path) {
   // Optional: objects held by clamps only.
   e.tip_x_px = OptionalNumbers(in, j, "tip_x_px");
   e.tip_y_px = OptionalNumbers(in, j, "tip_y_px");
-  if (e.tip_x_px.size() != e.tip_y_px.size()) Bad(in.Path("tip_y_px"), "expected as many as tip_x_px");
+  if (e.tip_x_px.size() != e.tip_y_px.size()) BadReportKey(in.Path("tip_y_px"), "expected as many as tip_x_px");
   if (j.contains("median_tip_distance_px") && !j["median_tip_distance_px"].is_null()) {
     e.median_tip_distance_px = in.Num("median_tip_distance_px");
   }
@@ -201,13 +201,13 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
   try {
     s.decision = StageDecisionFromString(in.Text("decision"));
   } catch (const std::invalid_argument& e) {
-    Bad(in.Path("decision"), e.what());
+    BadReportKey(in.Path("decision"), e.what());
   }
   s.effects = in.Texts("effects");
   const json& params = in.Raw("parameters");
-  if (!params.is_object()) Bad(in.Path("parameters"), "expected an object");
+  if (!params.is_object()) BadReportKey(in.Path("parameters"), "expected an object");
   for (const auto& [name, v] : params.items()) {
-    if (!v.is_number() && !v.is_null()) Bad(in.Path("parameters." + name), "expected a number");
+    if (!v.is_number() && !v.is_null()) BadReportKey(in.Path("parameters." + name), "expected a number");
     s.parameters[name] = v.is_null() ? NAN : v.get<double>();
   }
   const json& errors = in.Array("errors");
@@ -222,7 +222,7 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
   if (j.contains("equally_good")) {  // optional: measured only for kept models
     const In g(in.Raw("equally_good"), in.Path("equally_good"));
     s.equally_good.fits = static_cast<int>(g.Int("fits"));
-    if (s.equally_good.fits < 1) Bad(g.Path("fits"), "expected at least 1");
+    if (s.equally_good.fits < 1) BadReportKey(g.Path("fits"), "expected at least 1");
     s.equally_good.training_tolerance_px = g.Num("training_tolerance_px");
     s.equally_good.holdout_xor_min = g.Num("holdout_xor_min");
     s.equally_good.holdout_xor_max = g.Num("holdout_xor_max");
@@ -232,7 +232,7 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
   if (j.contains("holdout_sensitivity_px")) {  // optional: measured with held-out recordings
     s.holdout_sensitivity_px = in.Num("holdout_sensitivity_px");
     if (!(s.holdout_sensitivity_px >= 0.0)) {
-      Bad(in.Path("holdout_sensitivity_px"), "expected a number >= 0");
+      BadReportKey(in.Path("holdout_sensitivity_px"), "expected a number >= 0");
     }
     if (j.contains("holdout_sensitivity_parameter")) {
       s.holdout_sensitivity_parameter = in.Text("holdout_sensitivity_parameter");
@@ -241,13 +241,13 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
   if (j.contains("test")) {  // optional: tried stages only
     const In t(in.Raw("test"), in.Path("test"));
     s.test.frames = static_cast<int>(t.Int("frames"));
-    if (s.test.frames < 1) Bad(t.Path("frames"), "expected at least 1");
+    if (s.test.frames < 1) BadReportKey(t.Path("frames"), "expected at least 1");
     s.test.blocks = static_cast<int>(t.Int("blocks"));
     s.test.drop = t.Num("drop");
     s.test.drop_low = t.Num("drop_low");
     s.test.drop_high = t.Num("drop_high");
     s.test.p_value = t.Num("p_value");
-    if (!(s.test.p_value >= 0.0 && s.test.p_value <= 1.0)) Bad(t.Path("p_value"), "expected a number in [0, 1]");
+    if (!(s.test.p_value >= 0.0 && s.test.p_value <= 1.0)) BadReportKey(t.Path("p_value"), "expected a number in [0, 1]");
     s.test.hypotheses = static_cast<int>(t.Int("hypotheses"));
     s.test.significant = t.Bool("significant");
   }
@@ -255,7 +255,7 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
     const json& restarts = in.Array("restart_training_xor");
     for (size_t i = 0; i < restarts.size(); ++i) {
       if (!restarts[i].is_number() && !restarts[i].is_null()) {
-        Bad(fmt::format("{}[{}]", in.Path("restart_training_xor"), i), "expected a number");
+        BadReportKey(fmt::format("{}[{}]", in.Path("restart_training_xor"), i), "expected a number");
       }
       s.restart_training_xor.push_back(restarts[i].is_null() ? NAN : restarts[i].get<double>());
     }
@@ -264,7 +264,7 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
   if (j.contains("at_bounds")) {  // optional
     const json& bounds = in.Array("at_bounds");
     for (size_t i = 0; i < bounds.size(); ++i) {
-      if (!bounds[i].is_string()) Bad(fmt::format("{}[{}]", in.Path("at_bounds"), i), "expected a string");
+      if (!bounds[i].is_string()) BadReportKey(fmt::format("{}[{}]", in.Path("at_bounds"), i), "expected a string");
       s.at_bounds.push_back(bounds[i].get<std::string>());
     }
   }
@@ -411,7 +411,7 @@ nlohmann::json ToJson(const LoopReport& r) {
 LoopReport LoopReportFromJson(const nlohmann::json& doc) {
   const In in(doc, "");
   if (in.Text("format") != "calib-loop-report/1") {
-    Bad("format", fmt::format("expected calib-loop-report/1, found {}", in.Text("format")));
+    BadReportKey("format", fmt::format("expected calib-loop-report/1, found {}", in.Text("format")));
   }
   LoopReport r;
   r.title = in.Text("title");

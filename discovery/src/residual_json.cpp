@@ -315,7 +315,7 @@ json Encode(const RegionSummary& v) {
 
 // ---- decoding -------------------------------------------------------------
 
-[[noreturn]] void Bad(const std::string& key, const std::string& what) {
+[[noreturn]] void BadResidualKey(const std::string& key, const std::string& what) {
   throw std::invalid_argument(fmt::format("residual analysis JSON: key '{}': {}", key, what));
 }
 
@@ -325,36 +325,36 @@ void Decode(const json& j, double& v, const std::string& key) {
   } else if (j.is_number()) {
     v = j.get<double>();
   } else {
-    Bad(key, "expected a number or null");
+    BadResidualKey(key, "expected a number or null");
   }
 }
 void Decode(const json& j, int& v, const std::string& key) {
-  if (!j.is_number_integer()) Bad(key, "expected an integer");
+  if (!j.is_number_integer()) BadResidualKey(key, "expected an integer");
   v = j.get<int>();
 }
 void Decode(const json& j, int64_t& v, const std::string& key) {
-  if (!j.is_number_integer()) Bad(key, "expected an integer");
+  if (!j.is_number_integer()) BadResidualKey(key, "expected an integer");
   v = j.get<int64_t>();
 }
 void Decode(const json& j, bool& v, const std::string& key) {
-  if (!j.is_boolean()) Bad(key, "expected true or false");
+  if (!j.is_boolean()) BadResidualKey(key, "expected true or false");
   v = j.get<bool>();
 }
 void Decode(const json& j, std::string& v, const std::string& key) {
-  if (!j.is_string()) Bad(key, "expected a string");
+  if (!j.is_string()) BadResidualKey(key, "expected a string");
   v = j.get<std::string>();
 }
 void Decode(const json& j, Vec2& v, const std::string& key) {
-  if (!j.is_array() || j.size() != 2) Bad(key, "expected [x, y]");
+  if (!j.is_array() || j.size() != 2) BadResidualKey(key, "expected [x, y]");
   Decode(j[0], v.x(), key);
   Decode(j[1], v.y(), key);
 }
 void Decode(const json& j, LoadPhase& v, const std::string& key) {
-  if (!j.is_string()) Bad(key, "expected a phase name");
+  if (!j.is_string()) BadResidualKey(key, "expected a phase name");
   try {
     v = LoadPhaseFromString(j.get<std::string>());
   } catch (const std::invalid_argument& e) {
-    Bad(key, e.what());
+    BadResidualKey(key, e.what());
   }
 }
 void Decode(const json& j, Oscillation& v, const std::string& key);
@@ -371,13 +371,13 @@ void Decode(const json& j, RegionCounts& v, const std::string& key);
 void Decode(const json& j, RegionSummary& v, const std::string& key);
 template <class T>
 void Decode(const json& j, std::vector<T>& v, const std::string& key) {
-  if (!j.is_array()) Bad(key, "expected an array");
+  if (!j.is_array()) BadResidualKey(key, "expected an array");
   v.resize(j.size());
   for (size_t i = 0; i < j.size(); ++i) Decode(j[i], v[i], fmt::format("{}[{}]", key, i));
 }
 template <class T, size_t N>
 void Decode(const json& j, std::array<T, N>& v, const std::string& key) {
-  if (!j.is_array() || j.size() != N) Bad(key, fmt::format("expected an array of {}", N));
+  if (!j.is_array() || j.size() != N) BadResidualKey(key, fmt::format("expected an array of {}", N));
   for (size_t i = 0; i < N; ++i) Decode(j[i], v[i], fmt::format("{}[{}]", key, i));
 }
 
@@ -387,14 +387,14 @@ struct Reader {
   template <class T>
   void operator()(const char* key, T& value) {
     const std::string path = prefix.empty() ? key : prefix + "." + key;
-    if (!in.is_object() || !in.contains(key)) Bad(path, "missing");
+    if (!in.is_object() || !in.contains(key)) BadResidualKey(path, "missing");
     Decode(in.at(key), value, path);
   }
 };
 
 template <class S, void (*V)(S&, Reader&)>
 void DecodeWith(const json& j, S& s, const std::string& key) {
-  if (!j.is_object()) Bad(key, "expected an object");
+  if (!j.is_object()) BadResidualKey(key, "expected an object");
   Reader r{j, key};
   V(s, r);
 }
@@ -412,7 +412,7 @@ void Decode(const json& j, StrainSummary& v, const std::string& k) { DecodeWith<
 void Decode(const json& j, RegionCounts& v, const std::string& k) { DecodeWith<RegionCounts, VisitRegionCounts<RegionCounts, Reader>>(j, v, k); }
 
 void Decode(const json& j, RegionSummary& v, const std::string& key) {
-  if (!j.is_object()) Bad(key, "expected an object");
+  if (!j.is_object()) BadResidualKey(key, "expected an object");
   const char* groups[3] = {"all", "loaded", "released"};
   for (int g = 0; g < 3; ++g) {
     for (int r = 0; r < kNumRestRegions; ++r) {
@@ -420,14 +420,14 @@ void Decode(const json& j, RegionSummary& v, const std::string& key) {
       const std::string path = fmt::format("{}.counts.{}.{}", key, groups[g], name);
       if (!j.contains("counts") || !j["counts"].contains(groups[g]) ||
           !j["counts"][groups[g]].contains(name)) {
-        Bad(path, "missing");
+        BadResidualKey(path, "missing");
       }
       Decode(j["counts"][groups[g]][name], v.counts[g][r], path);
     }
   }
   for (int r = 0; r < kNumRestRegions; ++r) {
     const std::string name = ToString(static_cast<RestRegion>(r));
-    if (!j.contains("area_px") || !j["area_px"].contains(name)) Bad(key + ".area_px." + name, "missing");
+    if (!j.contains("area_px") || !j["area_px"].contains(name)) BadResidualKey(key + ".area_px." + name, "missing");
     Decode(j["area_px"][name], v.area_px[r], key + ".area_px." + name);
   }
   Reader reader{j, key};
@@ -450,7 +450,7 @@ nlohmann::json ToJson(const ResidualAnalysis& analysis, bool include_frames) {
 
 ResidualAnalysis ResidualAnalysisFromJson(const nlohmann::json& doc) {
   ResidualAnalysis a;
-  if (!doc.is_object()) Bad("(root)", "expected an object");
+  if (!doc.is_object()) BadResidualKey("(root)", "expected an object");
   const std::string root;
   Reader r{doc, root};
   VisitAnalysis(a, r);

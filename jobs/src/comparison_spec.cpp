@@ -18,14 +18,14 @@
 namespace calib {
 namespace {
 
-using MapReader = yaml_reader::MapReader;
+using YamlMapReader = yaml_reader::MapReader;
 
 // Keys of a comparison that are not a job spec's.
 const char* const kComparisonKeys[] = {"optimizers", "seeds", "targets"};
 // Keys of a job spec that each run sets for itself.
 const char* const kPerRunKeys[] = {"optimizer", "seed", "results"};
 
-std::vector<ComparedOptimizer> ReadOptimizers(MapReader& top) {
+std::vector<ComparedOptimizer> ReadOptimizers(YamlMapReader& top) {
   const YAML::Node list = top.Require("optimizers", "a list of optimisers ({name, label, settings})");
   if (!list.IsSequence() || list.size() == 0) {
     top.Fail("optimizers", list, "expected a non-empty list of optimisers ({name, label, settings})");
@@ -35,7 +35,7 @@ std::vector<ComparedOptimizer> ReadOptimizers(MapReader& top) {
   std::set<std::string> labels;
   for (size_t i = 0; i < list.size(); ++i) {
     const std::string path = fmt::format("optimizers[{}]", i);
-    MapReader o = top.Nested(list[i], path);
+    YamlMapReader o = top.Nested(list[i], path);
     ComparedOptimizer c;
     const YAML::Node n = o.Require("name", fmt::format("one of {}", fmt::join(names, ", ")));
     c.name = o.String("name", n);
@@ -63,7 +63,7 @@ std::vector<ComparedOptimizer> ReadOptimizers(MapReader& top) {
   return out;
 }
 
-std::vector<uint64_t> ReadSeeds(MapReader& top) {
+std::vector<uint64_t> ReadSeeds(YamlMapReader& top) {
   std::vector<uint64_t> seeds;
   if (!top.Has("seeds")) {
     for (uint64_t s = 1; s <= 15; ++s) seeds.push_back(s);
@@ -89,10 +89,10 @@ std::vector<uint64_t> ReadSeeds(MapReader& top) {
   return seeds;
 }
 
-ComparisonTargets ReadTargets(MapReader& top) {
+ComparisonTargets ReadTargets(YamlMapReader& top) {
   ComparisonTargets t;
   if (!top.Has("targets")) return t;
-  MapReader r = top.Child("targets");
+  YamlMapReader r = top.Child("targets");
   const bool relative = r.Has("relative");
   const bool absolute = r.Has("absolute");
   if (relative == absolute) {

@@ -55,10 +55,6 @@ std::string NewToken(const std::string& host) {
   return fmt::format("{}:{}:{:016x}", host, ::getpid(), bits);
 }
 
-double NowUnixSeconds() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
 }  // namespace
 
 HeldJobLock::HeldJobLock(ResultStore& store, int64_t job, const std::string& job_name,

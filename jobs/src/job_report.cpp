@@ -18,10 +18,6 @@
 namespace calib {
 namespace {
 
-double NowUnixSeconds() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
 }  // namespace
 
 std::string JobReport::Report() const {

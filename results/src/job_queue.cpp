@@ -21,10 +21,6 @@ constexpr auto kQueueStateNames = std::to_array<EnumName<QueueState>>({
 constexpr const char* kColumns =
     "id, name, spec_json, priority, submitted_unix_s, state, start, message";
 
-double NowUnixSeconds() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
 }  // namespace
 
 std::string ToString(QueueState state) { return EnumToString(kQueueStateNames, state); }

@@ -10,6 +10,11 @@
 #include <limits>
 
 namespace calib {
+
+double NowUnixSeconds() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
 namespace {
 
 // Version 1: jobs, evaluations, checkpoints. Version 2 adds job_locks and
@@ -145,10 +150,6 @@ constexpr const char* kEvaluationColumnsBefore4 =
 
 constexpr const char* kJobColumns =
     "id, name, spec_json, created_unix_s, updated_unix_s, status, stop_reason, result_json";
-
-double NowUnixSeconds() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
 
 // FNV-1a, 64 bit: detects flipped or lost bytes in a checkpoint blob.
 uint64_t Fnv1a64(std::string_view bytes) {

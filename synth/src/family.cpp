@@ -7,6 +7,7 @@
 #include "family_trees.h"
 #include "random.h"
 #include "sample_tree.h"
+#include "text_file.h"
 #include "yaml_json.h"
 
 #include <fmt/format.h>
@@ -168,12 +169,6 @@ nlohmann::ordered_json Summary(const FamilyObject& object) {
   }
   s["pushes"] = pushes;
   return s;
-}
-
-void WriteText(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  if (!out) throw std::runtime_error(fmt::format("{}: cannot write", path.string()));
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include "calib/evaluator/json_number.h"
 #include "calib/synth/renderer.h"
 #include "random.h"
+#include "text_file.h"
 #include "yaml_json.h"
 
 #include <fmt/format.h>
@@ -52,12 +53,6 @@ class ScopedEnv {
   const char* name_;
   std::optional<std::string> old_;
 };
-
-void WriteText(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  if (!out) throw std::runtime_error(fmt::format("{}: cannot write", path.string()));
-}
 
 // Area (px^2) and centroid (px) of the deformed mesh: the sums over its
 // triangles.

@@ -60,6 +60,10 @@
 
 namespace calib {
 
+/// The wall clock as the store's timestamps hold it: seconds since the Unix
+/// epoch.
+double NowUnixSeconds();
+
 /// A database failure; what() names the path and the operation.
 class StoreError : public std::runtime_error {
  public:
