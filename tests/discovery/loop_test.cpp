@@ -33,10 +33,6 @@ TEST(Loop, AddsNothingWhereNoEffectIsPresent) {
     }
   }
   LoopOptions options = testing::TestLoopOptions({train}, {holdout}, "loop_no_effect");
-  // The budgets a user's `calib loop` runs with (as the external pairs'
-  // tests): a false discovery at those is what this guards against.
-  options.budget = LoopOptions{}.budget;
-  options.effect_budget = LoopOptions{}.effect_budget;
   options.overlays_per_recording = 1;
   options.equally_good_fits = 16;
   options.write_html = true;

@@ -43,8 +43,10 @@ inline std::vector<std::string> TrueEffects(const std::filesystem::path& recordi
   return out;
 }
 
-/// Loop options for a test: the budgets the loop needs on a 330-frame
-/// recording (5-25 minutes on two cores), one effect at most, no HTML.
+/// Loop options for a test: the budgets a user's `calib loop` runs with
+/// (160 evaluations a search, three searches of the base model, 160 a
+/// calibration with an effect), one effect at most, no HTML. Tests that
+/// check no search result set smaller budgets.
 inline LoopOptions TestLoopOptions(const std::vector<std::filesystem::path>& train,
                                    const std::vector<std::filesystem::path>& holdout,
                                    const std::string& scratch_name) {
@@ -53,11 +55,6 @@ inline LoopOptions TestLoopOptions(const std::vector<std::filesystem::path>& tra
   o.holdout = holdout;
   o.out_dir = ScratchDir(scratch_name);
   o.seed = 1;
-  o.budget = 400;
-  // Each effect's recalibration: a quarter with the effect's parameters
-  // alone, the rest jointly; the joint search needs a few hundred
-  // evaluations to leave the base fit's basin (docs/loop.md).
-  o.effect_budget = 600;
   o.threads = 2;
   o.max_effects = 1;
   o.tries_per_round = 3;
