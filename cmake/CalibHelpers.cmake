@@ -14,8 +14,10 @@ endfunction()
 # what they exercise is the libraries, compiled as a user's (-O3), and a
 # test file's compile time is mostly gtest's, nlohmann-json's and Eigen's
 # templates, which -Og emits in half the time (a loop test's file: 20 s at
-# -O3, 10 s at -Og). Results do not change: no floating-point contraction
-# or fast-math either way.
+# -O3, 10 s at -Og). Results do not change: no fast-math either way, and
+# the default x86-64 target the test files are built for has no fused
+# multiply-add to contract into (the libraries' AVX-512 kernels, which
+# may, are built with the libraries).
 set(CALIB_TEST_OPTIMIZATION $<$<NOT:$<CONFIG:Debug>>:-Og>)
 
 # calib_add_test(NAME SOURCES ... DEPENDS ... [TIMEOUT SECONDS]): one
