@@ -20,12 +20,15 @@ endfunction()
 # may, are built with the libraries).
 set(CALIB_TEST_OPTIMIZATION $<$<NOT:$<CONFIG:Debug>>:-Og>)
 
-# calib_add_test(NAME SOURCES ... DEPENDS ... [TIMEOUT SECONDS]): one
-# GoogleTest executable, registered with ctest. Tests find ../shared through
-# CALIB_SHARED_DIR. TIMEOUT overrides ctest's --timeout for each of its tests
-# (whole calibrations).
+# calib_add_test(NAME SOURCES ... DEPENDS ... [TIMEOUT SECONDS] [COST SECONDS]):
+# one GoogleTest executable, registered with ctest. Tests find ../shared
+# through CALIB_SHARED_DIR. TIMEOUT overrides ctest's --timeout for each of
+# its tests (whole calibrations). COST is about how long its longest test
+# runs: ctest -j starts the costliest tests first where it has no timings of
+# its own yet (a fresh clone, as in CI), so that a long test does not start
+# last and run alone on an otherwise idle machine.
 function(calib_add_test name)
-  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;DEPENDS" ${ARGN})
+  cmake_parse_arguments(ARG "" "TIMEOUT;COST" "SOURCES;DEPENDS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPENDS} calib_test_support GTest::gtest_main)
   target_compile_options(${name} PRIVATE -Wall -Wextra ${CALIB_TEST_OPTIMIZATION})
@@ -40,6 +43,9 @@ function(calib_add_test name)
                  ENVIRONMENT_MODIFICATION "OMP_WAIT_POLICY=set:passive" LABELS gtest)
   if(ARG_TIMEOUT)
     list(APPEND properties TIMEOUT ${ARG_TIMEOUT})
+  endif()
+  if(ARG_COST)
+    list(APPEND properties COST ${ARG_COST})
   endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${properties})
 endfunction()
