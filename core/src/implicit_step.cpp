@@ -57,7 +57,7 @@ template <class Factor>
 bool ImplicitFirstOrderStep::Factorized(const Factor& factor, const ModelParameters& params,
                                         double h, std::string* error) {
   if (factor.info() == Eigen::Success && factor.vectorD().minCoeff() > 0.0) {
-    factor_view_ = ldlt::ViewOf(factor, &inverse_d_);
+    factor_view_ = ldlt::ViewOf(factor, &factor_extras_);
     return true;
   }
   factor_view_ = {};

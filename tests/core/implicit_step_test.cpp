@@ -17,6 +17,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -700,10 +701,27 @@ TEST(LdltSolve, GivesTheFactorsOwnSolveBitForBitAloneAndInPairs) {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>>
       factor(assembly.lower());
   ASSERT_EQ(factor.info(), Eigen::Success);
-  std::vector<double> inverse_d;
-  const ldlt::FactorView view = ldlt::ViewOf(factor, &inverse_d);
+  ldlt::FactorExtras extras;
+  const ldlt::FactorView view = ldlt::ViewOf(factor, &extras);
   const int m = assembly.num_unknowns();
   ASSERT_EQ(view.n, m);
+  // The backward substitution's order: every column once, after every
+  // column whose entry it reads (its ancestors), with depths of four
+  // columns and more (advanced side by side).
+  const ldlt::Sweep& sweep = view.backward;
+  std::vector<int> depth(m, -1);
+  int widest = 0;
+  for (int d = 0; d < sweep.num_levels; ++d) {
+    for (int r = sweep.level_begin[d]; r < sweep.level_begin[d + 1]; ++r) depth[sweep.lines[r]] = d;
+    widest = std::max(widest, sweep.level_begin[d + 1] - sweep.level_begin[d]);
+  }
+  ASSERT_EQ(std::count(depth.begin(), depth.end(), -1), 0);
+  for (int k = 0; k < m; ++k) {
+    for (int p = view.outer[k]; p < view.outer[k + 1]; ++p) {
+      ASSERT_LT(depth[view.inner[p]], depth[k]) << "column " << k << " reads " << view.inner[p];
+    }
+  }
+  EXPECT_GE(widest, 4);
 
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> u(-1.0, 1.0);

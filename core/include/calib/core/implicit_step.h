@@ -150,9 +150,9 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> factor_;
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Upper, Eigen::NaturalOrdering<int>> shape_factor_;
   // The last successful factorisation's arrays (ldlt_solve.h: the factor's
-  // own solve, bit for bit) and its 1 / D.
+  // own solve, bit for bit), and its 1 / D and backward order.
   ldlt::FactorView factor_view_;
-  std::vector<double> inverse_d_;
+  ldlt::FactorExtras factor_extras_;
   std::vector<double> solve_scratch_;  // 2 m: SolveInPlace2's
   // dest = A^-1 rhs with the current factor.
   template <class Rhs, class Dest>
