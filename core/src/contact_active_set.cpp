@@ -15,7 +15,6 @@ Vec2 Tangent(const Vec2& normal) { return Vec2(-normal.y(), normal.x()); }
 ContactActiveSet::ContactActiveSet(std::span<const int> unknown_of_coordinate, int num_unknowns)
     : unknown_of_coordinate_(unknown_of_coordinate) {
   step_.setZero(num_unknowns);
-  column_.setZero(num_unknowns);
   normal_response_.setZero(num_unknowns, kMaxActiveContacts);
   tangent_response_.setZero(num_unknowns, kMaxActiveContacts);
 }
@@ -41,7 +40,7 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
   active_.clear();
   active_of_contact_.assign(num_contacts, -1);
   excluded_.assign(num_contacts, 0);
-  step_ = free_step;
+  num_rows_ = 0;
   const auto tangent_target = [&](const StepContact& c) {
     return Tangent(c.normal).dot(c.obstacle_step);
   };
@@ -60,7 +59,7 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
       if (active_of_contact_[j] >= 0 || excluded_[j] != 0) continue;
       if (static_cast<int>(active_.size()) == kMaxActiveContacts) break;
       const StepContact& c = contacts[j];
-      if (!(Along(c, c.normal, step_) - c.gap < -kContactTolerancePx)) continue;
+      if (!(StepAlong(c, c.normal, free_step) - c.gap < -kContactTolerancePx)) continue;
       const int a = static_cast<int>(active_.size());
       active_.push_back(ActiveContact{j, friction > 0.0, 0.0, 0.0, 0.0});
       active_of_contact_[j] = a;
@@ -91,7 +90,7 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
           a.slip_sign = a.tangent_force > 0.0 ? 1.0 : -1.0;
           changed = true;
         } else if (!a.stick &&
-                   a.slip_sign * (Along(c, Tangent(c.normal), step_) - tangent_target(c)) >
+                   a.slip_sign * (StepAlong(c, Tangent(c.normal), free_step) - tangent_target(c)) >
                        kContactTolerancePx) {
           a.stick = true;  // it would slide the way its friction pushes
           changed = true;
@@ -108,33 +107,60 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
       remove(last);
     }
   }
+  // The step itself, once: free_step plus each row's force times its
+  // column, the rows in order (the operations StepAlong makes per entry).
+  step_ = free_step;
+  for (int u = 0; u < num_rows_; ++u) {
+    const Row& row = rows_[u];
+    if (row.slides) {
+      step_ += forces_[u] *
+               (normal_response_.col(row.response) + row.slip * tangent_response_.col(row.response));
+    } else if (row.tangent) {
+      step_ += forces_[u] * tangent_response_.col(row.response);
+    } else {
+      step_ += forces_[u] * normal_response_.col(row.response);
+    }
+  }
   return step_;
+}
+
+double ContactActiveSet::ColumnAt(int u, int k) const {
+  const Row& row = rows_[u];
+  if (row.slides) return normal_response_(k, row.response) + row.slip * tangent_response_(k, row.response);
+  return row.tangent ? tangent_response_(k, row.response) : normal_response_(k, row.response);
+}
+
+double ContactActiveSet::StepAlong(const StepContact& contact, const Vec2& direction,
+                                   const Eigen::VectorXd& free_step) const {
+  double along = 0.0;
+  ForEachContactUnknown(contact, direction, unknown_of_coordinate_, [&](int k, double g) {
+    double step = free_step[k];
+    for (int u = 0; u < num_rows_; ++u) step += forces_[u] * ColumnAt(u, k);
+    along += g * step;
+  });
+  return along;
 }
 
 bool ContactActiveSet::SolveActive(std::span<const StepContact> contacts, double friction,
                                    const Eigen::VectorXd& free_step) {
   const int k = static_cast<int>(active_.size());
-  step_ = free_step;
+  num_rows_ = 0;
   if (k == 0) return true;
   for (int a = 0; a < k; ++a) active_of_contact_[active_[a].contact] = a;
   // Unknowns: each active contact's normal force, then each sticking
   // contact's tangential force. A sliding contact's friction is slip_sign
   // mu times its normal force, so its normal force's column carries it.
   int rows = k;
-  for (int a = 0; a < k; ++a) tangent_row_[a] = active_[a].stick ? rows++ : -1;
-  const auto column = [&](int unknown) {
-    if (unknown < k) {
-      column_ = normal_response_.col(unknown);
-      const ActiveContact& a = active_[unknown];
-      if (!a.stick && friction > 0.0) {
-        column_ += (a.slip_sign * friction) * tangent_response_.col(unknown);
-      }
-    } else {
-      int a = 0;
-      while (tangent_row_[a] != unknown) ++a;
-      column_ = tangent_response_.col(a);
-    }
-  };
+  for (int a = 0; a < k; ++a) {
+    const ActiveContact& active = active_[a];
+    rows_[a] = Row{a, false, !active.stick && friction > 0.0, active.slip_sign * friction};
+  }
+  for (int a = 0; a < k; ++a) {
+    tangent_row_[a] = -1;
+    if (!active_[a].stick) continue;
+    tangent_row_[a] = rows;
+    rows_[rows++] = Row{a, true, false, 0.0};
+  }
   system_.resize(rows, rows);
   system_rhs_.resize(rows);
   for (int a = 0; a < k; ++a) {
@@ -145,21 +171,25 @@ bool ContactActiveSet::SolveActive(std::span<const StepContact> contacts, double
       system_rhs_[tangent_row_[a]] = t.dot(c.obstacle_step) - Along(c, t, free_step);
     }
   }
+  // Each column's entries at the contacts' own unknowns: all the system
+  // reads of the m-long column.
   for (int u = 0; u < rows; ++u) {
-    column(u);
+    const auto along = [&](const StepContact& c, const Vec2& direction) {
+      double sum = 0.0;
+      ForEachContactUnknown(c, direction, unknown_of_coordinate_,
+                            [&](int unknown, double g) { sum += g * ColumnAt(u, unknown); });
+      return sum;
+    };
     for (int a = 0; a < k; ++a) {
       const StepContact& c = contacts[active_[a].contact];
-      system_(a, u) = Along(c, c.normal, column_);
-      if (tangent_row_[a] >= 0) system_(tangent_row_[a], u) = Along(c, Tangent(c.normal), column_);
+      system_(a, u) = along(c, c.normal);
+      if (tangent_row_[a] >= 0) system_(tangent_row_[a], u) = along(c, Tangent(c.normal));
     }
   }
   lu_.compute(system_);
   if (!lu_.isInvertible()) return false;
   forces_ = lu_.solve(system_rhs_);
-  for (int u = 0; u < rows; ++u) {
-    column(u);
-    step_ += forces_[u] * column_;
-  }
+  num_rows_ = rows;
   for (int a = 0; a < k; ++a) {
     ActiveContact& active = active_[a];
     active.normal_force = forces_[a];

@@ -95,7 +95,7 @@ class ContactActiveSet {
   // The step's response to a unit force along each active contact's normal
   // and tangent (m rows, kMaxActiveContacts columns).
   Eigen::MatrixXd normal_response_, tangent_response_;
-  Eigen::VectorXd step_, column_;  // the constrained step; a scratch column
+  Eigen::VectorXd step_;  // the constrained step
   // The active contacts' system (fixed capacity: no allocation).
   static constexpr int kMaxRows = 2 * kMaxActiveContacts;
   using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxRows, kMaxRows>;
@@ -104,10 +104,27 @@ class ContactActiveSet {
   SmallVector system_rhs_, forces_;
   Eigen::FullPivLU<SmallMatrix> lu_;
   std::array<int, kMaxActiveContacts> tangent_row_{};
-  // Solves for the active contacts' forces and sets step_ (free_step plus
-  // their responses); false when the system is singular.
+  // The system's unknowns (rows of forces_): each one's column of the step
+  // is active contact `response`'s normal response (plus `slip` times its
+  // tangent response when it `slides`), or its tangent response.
+  struct Row {
+    int response = 0;
+    bool tangent = false;
+    bool slides = false;
+    double slip = 0.0;
+  };
+  std::array<Row, kMaxRows> rows_{};
+  int num_rows_ = 0;  // of the last successful SolveActive; 0: the free step
+  // Solves for the active contacts' forces (forces_, rows_); false when the
+  // system is singular. The step is free_step plus each row's force times
+  // its column; the active set reads it only at the contacts' unknowns
+  // (StepAlong), and Solve forms it whole once, at its end.
   bool SolveActive(std::span<const StepContact> contacts, double friction,
                    const Eigen::VectorXd& free_step);
+  double ColumnAt(int row, int unknown) const;
+  // Along, of the step of the last successful SolveActive.
+  double StepAlong(const StepContact& contact, const Vec2& direction,
+                   const Eigen::VectorXd& free_step) const;
   // The motion of `contact`'s point along `direction` under the step dx.
   double Along(const StepContact& contact, const Vec2& direction, const Eigen::VectorXd& dx) const;
 };
