@@ -76,9 +76,8 @@ case "$kind" in
     logs="$root/$build/sanitize-logs"
     rm -rf "$logs"
     mkdir -p "$logs"
-    first=(jobs_job_cli_test service_test discovery_loop_test jobs_commands_test
-           evaluator_coverage_rasterizer_test jobs_golden_test synth_family_test
-           jobs_commands_cli_test search_performance_test evaluator_stiff_contact_test)
+    first=(jobs_job_cli_test evaluator_test service_test discovery_loop_test jobs_test
+           synth_test jobs_golden_test jobs_commands_cli_test search_test core_test)
     mapfile -t programs < <(
       printf '%s\n' "${first[@]}"
       find "$build/tests" -maxdepth 1 -type f -executable -name '*_test' -printf '%f\n' | sort)

@@ -14,10 +14,10 @@ namespace {
 
 const PreparedRecording& Reference() { return bench::ShortReferenceScene(); }
 
-using Trajectory = std::vector<std::vector<Vec2>>;
+using StateHistory = std::vector<std::vector<Vec2>>;
 
 EvaluationResult EvaluateRecording(Evaluator& evaluator, const ParameterValues& values,
-                                   Trajectory* states) {
+                                   StateHistory* states) {
   return evaluator.Evaluate(values, [&](int, const Simulator& sim, const BitMask&,
                                         const FrameScore&) { states->push_back(sim.positions()); });
 }
@@ -40,14 +40,14 @@ TEST(EvaluatorWithEffects, NoEffectsIsTheOldPathBitForBit) {
     ModelParameters params = bench::ReferenceParameters();
     if (integrator == IntegratorKind::kVerlet) params.mass = 50.0;
     Evaluator old_path(Reference(), options);
-    Trajectory old_states;
+    StateHistory old_states;
     const EvaluationResult old_result = old_path.Evaluate(
         params, [&](int, const Simulator& sim, const BitMask&, const FrameScore&) {
           old_states.push_back(sim.positions());
         });
     ASSERT_TRUE(old_result.ok()) << old_result.failure_reason;
     Evaluator named(Reference(), options, ModelDefinition{});
-    Trajectory named_states;
+    StateHistory named_states;
     const EvaluationResult named_result =
         EvaluateRecording(named, params.ToValues(), &named_states);
     ExpectSameResult(old_result, named_result);
@@ -75,7 +75,7 @@ const ModelDefinition kFirstOrderEffects{{"table_friction", "plasticity", "uneve
 TEST(EvaluatorWithEffects, DeterministicAcrossEvaluatorsAndReuse) {
   Evaluator a(Reference(), {}, kFirstOrderEffects);
   Evaluator b(Reference(), {}, kFirstOrderEffects);
-  Trajectory states_a, states_b, states_again;
+  StateHistory states_a, states_b, states_again;
   const EvaluationResult first = EvaluateRecording(a, WithEffects(), &states_a);
   ASSERT_TRUE(first.ok()) << first.failure_reason;
   ParameterValues other = WithEffects();

@@ -21,12 +21,12 @@ namespace {
 
 using calib::testing::MakeGridMesh;
 
-ModelParameters Base() { return calib::testing::StiffTestParameters(0.2); }
+ModelParameters CatalogueBase() { return calib::testing::StiffTestParameters(0.2); }
 
 // Values for the base model and every effect, chosen so that each effect
 // does something (a yield that is reached, a gradient, a stiff quartic...).
 ParameterValues AllValues() {
-  ParameterValues v = Base().ToValues();
+  ParameterValues v = CatalogueBase().ToValues();
   v["inertia_damping_per_s"] = 2.0;
   v["gravity_px_s2"] = 300.0;
   v["gravity_angle_deg"] = 60.0;
@@ -59,7 +59,7 @@ std::vector<Vec2> Perturbed(const std::vector<Vec2>& x0, double amount, uint64_t
 std::unique_ptr<EffectTerm> Configured(const std::string& name, const Mesh& mesh) {
   std::unique_ptr<EffectTerm> effect = MakeEffect(name);
   effect->Bind(mesh);
-  effect->Configure(AllValues(), Base());
+  effect->Configure(AllValues(), CatalogueBase());
   effect->Reset();
   return effect;
 }
@@ -143,7 +143,7 @@ TEST(ModelDefinition, SimulatorNamesUnknownEffectAndBadParameters) {
   }
 
   Simulator sim(mesh, scene, {}, ModelDefinition{{"table_friction"}});
-  ParameterValues values = Base().ToValues();
+  ParameterValues values = CatalogueBase().ToValues();
   values["friction_force"] = -1.0;
   try {
     sim.Reset(values);
@@ -175,7 +175,7 @@ TEST(ModelDefinition, SimulatorNamesUnknownEffectAndBadParameters) {
   values["friction_force"] = 1.0;
   EXPECT_NO_THROW(sim.Reset(values));
   // The base model's struct cannot configure effects.
-  EXPECT_THROW(sim.Reset(Base()), std::logic_error);
+  EXPECT_THROW(sim.Reset(CatalogueBase()), std::logic_error);
 }
 
 // Every effect with an energy: forces against central differences of the
@@ -285,12 +285,12 @@ TEST(EffectTerms, GravityIsTheBodyForceAlongItsAngle) {
   ParameterValues values = AllValues();
   values["gravity_px_s2"] = 1000.0;
   values["gravity_angle_deg"] = 90.0;  // down the image
-  effect->Configure(values, Base());
+  effect->Configure(values, CatalogueBase());
   std::vector<Vec2> v(mesh.NumNodes(), Vec2::Zero()), f(mesh.NumNodes(), Vec2::Zero());
   effect->AddForces(mesh.rest_positions, v, f, nullptr);
   for (const Vec2& fi : f) {
     EXPECT_NEAR(fi.x(), 0.0, 1e-12);
-    EXPECT_NEAR(fi.y(), Base().mass * 1000.0, 1e-12);
+    EXPECT_NEAR(fi.y(), CatalogueBase().mass * 1000.0, 1e-12);
   }
   EXPECT_EQ(effect->SecondOrderDamping(), std::optional<double>(2.0));
 }

@@ -19,7 +19,7 @@ namespace {
 using calib::testing::MakeGridMesh;
 
 // A 20 x 100 px strip hanging from a clamp along its top edge.
-Mesh HangingStrip() { return MakeGridMesh(2, 10, 10.0, Vec2(100, 100)); }
+Mesh StartingStrip() { return MakeGridMesh(2, 10, 10.0, Vec2(100, 100)); }
 
 Scene SwingScene(int frames, const Vec2& offset, const Vec2& velocity) {
   Scene scene;
@@ -64,7 +64,7 @@ double MaxNorm(std::span<const Vec2> field) {
 }
 
 TEST(InitialMotion, RestsAtTheObservedEquilibriumAndStartsWithTheObservedVelocity) {
-  const Mesh mesh = HangingStrip();
+  const Mesh mesh = StartingStrip();
   const Scene scene = SwingScene(10, Vec2(6.0, 0.0), Vec2(-40.0, 0.0));
   Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
   sim.Reset(InertiaValues(1.0));
@@ -104,7 +104,7 @@ TEST(InitialMotion, RestsAtTheObservedEquilibriumAndStartsWithTheObservedVelocit
 TEST(InitialMotion, TheStiffDirectionIsNotExplainedByADeflection) {
   // Stretching a hanging strip along its length is stiff: a vertical centroid
   // offset is a swing's arc, so the rest stays (to rounding) at frame 0.
-  const Mesh mesh = HangingStrip();
+  const Mesh mesh = StartingStrip();
   const Scene scene = SwingScene(10, Vec2(0.0, 5.0), Vec2(0.0, 30.0));
   Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
   sim.Reset(InertiaValues(1.0));
@@ -114,7 +114,7 @@ TEST(InitialMotion, TheStiffDirectionIsNotExplainedByADeflection) {
 }
 
 TEST(InitialMotion, TheObjectSwingsAboutTheObservedEquilibrium) {
-  const Mesh mesh = HangingStrip();
+  const Mesh mesh = StartingStrip();
   const Scene scene = SwingScene(480, Vec2(4.0, 0.0), Vec2::Zero());
   Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
   // Stiff enough to swing a few times in the 2 s of the scene.
@@ -141,7 +141,7 @@ TEST(InitialMotion, TheObjectSwingsAboutTheObservedEquilibrium) {
 }
 
 TEST(InitialMotion, NothingChangesWithoutInertiaClampsOrObservedMotion) {
-  const Mesh mesh = HangingStrip();
+  const Mesh mesh = StartingStrip();
   const ParameterValues values = InertiaValues(1.0);
   const auto run = [&](const Scene& scene, const ModelDefinition& model) {
     Simulator sim(mesh, scene, {}, model);
@@ -171,7 +171,7 @@ TEST(InitialMotion, NothingChangesWithoutInertiaClampsOrObservedMotion) {
 }
 
 TEST(InitialMotion, ResetIsDeterministicAndForgetsTheLastCandidate) {
-  const Mesh mesh = HangingStrip();
+  const Mesh mesh = StartingStrip();
   const Scene scene = SwingScene(60, Vec2(5.0, 0.0), Vec2(20.0, 0.0));
   Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
   const auto run = [&](const ParameterValues& values) {
@@ -196,7 +196,7 @@ TEST(InitialMotion, ResetIsDeterministicAndForgetsTheLastCandidate) {
 TEST(InitialMotion, ADeflectionTooLargeForTheLinearEstimateIsScaledDown) {
   // 5000 px mean offset for a 100 px strip: the linear response turns
   // triangles over; the rest takes the largest share that keeps them all.
-  const Mesh mesh = HangingStrip();
+  const Mesh mesh = StartingStrip();
   const Scene scene = SwingScene(10, Vec2(5000.0, 0.0), Vec2::Zero());
   Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
   sim.Reset(InertiaValues(1.0));
@@ -214,7 +214,7 @@ TEST(InitialMotion, ATrackedShapeHangsInEquilibriumUnderGravityAndMovesWithTheTr
   // The scene's motion as tracked from a video: the strip hangs straight
   // (the mesh) and starts still. With gravity the springs rest above it,
   // by the sag gravity gives them, so the strip stays where it was seen.
-  const Mesh mesh = HangingStrip();
+  const Mesh mesh = StartingStrip();
   Scene scene = SwingScene(60, Vec2::Zero(), Vec2::Zero());
   scene.motion.node_rest_px = mesh.rest_positions;
   scene.motion.node_velocity_px_s.assign(mesh.NumNodes(), Vec2::Zero());

@@ -91,7 +91,7 @@ std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& p,
   return f;
 }
 
-void ExpectSameBits(const std::vector<Vec2>& expected, const std::vector<Vec2>& actual,
+void ExpectSameModelBits(const std::vector<Vec2>& expected, const std::vector<Vec2>& actual,
                     const std::string& what) {
   ASSERT_EQ(expected.size(), actual.size());
   for (size_t i = 0; i < expected.size(); ++i) {
@@ -127,7 +127,7 @@ TEST(Model, EveryKernelGivesTheBitsOfTheScalarSums) {
       const std::string what = ToString(kernel) + " at jitter " + std::to_string(amount);
       std::fill(f.begin(), f.end(), Vec2(1e300, -1e300));  // overwritten, not added to
       const double energy = model.ComputeForces(p, x, v, f, ws, kernel);
-      ExpectSameBits(expected, f, what);
+      ExpectSameModelBits(expected, f, what);
       EXPECT_EQ(std::bit_cast<uint64_t>(energy), std::bit_cast<uint64_t>(baseline_energy))
           << what << ": energy " << energy << " vs " << baseline_energy;
     }
@@ -151,7 +151,7 @@ TEST(Model, KernelsAgreeOnACollapsedEdge) {
   for (const ForceKernel kernel : kKernels) {
     if (!Model::IsAvailable(kernel)) continue;
     const double energy = model.ComputeForces(p, x, v, f, ws, kernel);
-    ExpectSameBits(expected, f, ToString(kernel));
+    ExpectSameModelBits(expected, f, ToString(kernel));
     EXPECT_EQ(std::bit_cast<uint64_t>(energy), std::bit_cast<uint64_t>(baseline_energy))
         << ToString(kernel);
   }

@@ -21,7 +21,7 @@ using calib::testing::MakeGridMesh;
 using calib::testing::OneDiscScene;
 using calib::testing::StillScene;
 
-ModelParameters Stiff() { return calib::testing::StiffTestParameters(); }
+ModelParameters StiffParameters() { return calib::testing::StiffTestParameters(); }
 
 std::vector<Vec2> Perturbed(const Mesh& mesh, double amount, uint64_t seed) {
   std::mt19937_64 rng(seed);
@@ -34,7 +34,7 @@ std::vector<Vec2> Perturbed(const Mesh& mesh, double amount, uint64_t seed) {
 TEST(Model, AssembledForcesAreNegativeGradientOfEnergy) {
   const Mesh mesh = MakeGridMesh(4, 3, 10.0);
   const Model model(mesh);
-  ModelParameters p = Stiff();
+  ModelParameters p = StiffParameters();
   p.k_damping = 0.0;
   const auto x = Perturbed(mesh, 2.0, 1);
   std::vector<Vec2> v(x.size(), Vec2::Zero()), f(x.size());
@@ -59,7 +59,7 @@ TEST(Model, AssembledForcesAreNegativeGradientOfEnergy) {
 TEST(Model, SumsMatchTheReferenceKernels) {
   const Mesh mesh = MakeGridMesh(6, 4, 10.0, Vec2(5, 7));
   const Model model(mesh);
-  const ModelParameters p = Stiff();
+  const ModelParameters p = StiffParameters();
   const auto x = Perturbed(mesh, 3.0, 11);
   const auto v = Perturbed(mesh, 0.0, 0);  // rest positions as arbitrary velocities
   std::vector<Vec2> f(x.size()), ref(x.size(), Vec2::Zero());
@@ -92,7 +92,7 @@ TEST(Model, SumsMatchTheReferenceKernels) {
 TEST(Model, ZeroForceAtRestAndRigidMotionKeepsEnergy) {
   const Mesh mesh = MakeGridMesh(5, 4, 12.0, Vec2(30, 40));
   const Model model(mesh);
-  const ModelParameters p = Stiff();
+  const ModelParameters p = StiffParameters();
   std::vector<Vec2> v(mesh.NumNodes(), Vec2::Zero()), f(mesh.NumNodes());
   EXPECT_NEAR(model.ComputeForces(p, mesh.rest_positions, v, f), 0.0, 1e-20);
   for (const Vec2& fi : f) EXPECT_LT(fi.norm(), 1e-10);
@@ -108,7 +108,7 @@ TEST(Simulator, RestStaysAtRest) {
   const Mesh mesh = MakeGridMesh(4, 2, 10.0);
   const Scene scene = StillScene(20);
   Simulator sim(mesh, scene, {});
-  sim.Reset(Stiff());
+  sim.Reset(StiffParameters());
   while (sim.Advance()) {
   }
   EXPECT_EQ(sim.status(), SimulationStatus::kFinished);
@@ -142,7 +142,7 @@ TEST(Simulator, NoObstacleIsPenetratedAfterAnySubstep) {
   const Mesh mesh = MakeGridMesh(10, 4, 10.0, Vec2(100, 100));
   const Scene scene = PushScene(mesh, 40);
   Simulator sim(mesh, scene, {});
-  sim.Reset(Stiff());
+  sim.Reset(StiffParameters());
   int substeps = 0;
   double max_move = 0.0;
   const auto check = [&](int s) {
@@ -169,7 +169,7 @@ TEST(Simulator, ClampedNodesNeverMove) {
   int clamped = 0;
   for (uint8_t c : sim.clamped()) clamped += c;
   ASSERT_EQ(clamped, 7);
-  sim.Reset(Stiff());
+  sim.Reset(StiffParameters());
   double max_free_move = 0.0;
   while (sim.Advance()) {
     for (int i = 0; i < mesh.NumNodes(); ++i) {
@@ -217,7 +217,7 @@ TEST(Constraints, RepairDoesNotMoveFixedNodes) {
 TEST(Simulator, BlowUpEndsFailedWithReasonAndFrame) {
   const Mesh mesh = MakeGridMesh(6, 3, 10.0, Vec2(100, 100));
   const Scene scene = PushScene(mesh, 30);
-  ModelParameters p = Stiff();
+  ModelParameters p = StiffParameters();
   p.k_distance = 1e9;  // far beyond the explicit step's stability limit
   p.mass = 1e-6;
   Simulator sim(mesh, scene, {});
@@ -230,7 +230,7 @@ TEST(Simulator, BlowUpEndsFailedWithReasonAndFrame) {
   EXPECT_LT(sim.failure_frame(), scene.num_frames);
   // A failed simulator stays failed and can be reset for the next candidate.
   EXPECT_FALSE(sim.Advance());
-  sim.Reset(Stiff());
+  sim.Reset(StiffParameters());
   while (sim.Advance()) {
   }
   EXPECT_EQ(sim.status(), SimulationStatus::kFinished);
@@ -241,7 +241,7 @@ TEST(Simulator, IdenticalInputGivesBitIdenticalStates) {
   const Scene scene = PushScene(mesh, 25);
   auto run = [&] {
     Simulator sim(mesh, scene, {});
-    sim.Reset(Stiff());
+    sim.Reset(StiffParameters());
     while (sim.Advance()) {
     }
     return sim.positions();
@@ -261,7 +261,7 @@ TEST(Simulator, TranslationShareMovesTheWholeBody) {
   const Mesh mesh = MakeGridMesh(3, 2, 10.0, Vec2(100, 100));
   const Scene scene = OneDiscScene(
       11, 10.0, [](int) { return Disc{Vec2(0, 0), 1.0}; }, [](int) { return Vec2(3.0, -1.5); });
-  ModelParameters p = Stiff();
+  ModelParameters p = StiffParameters();
   p.translation = 1.0;
   p.mass = 0.2;
   const double n = mesh.NumNodes();
@@ -298,7 +298,7 @@ TEST(Simulator, PushWithoutTranslationActsOnTheNearestNode) {
   // Finger just off the top-left corner (node 0); it does not touch the mesh.
   const Scene scene = OneDiscScene(
       2, 30.0, [](int) { return Disc{Vec2(95, 95), 2.0}; }, [](int) { return Vec2(1.0, 0.0); });
-  ModelParameters p = Stiff();
+  ModelParameters p = StiffParameters();
   p.k_damping = 0.0;
   SimulationOptions options;
   options.substeps = 1;

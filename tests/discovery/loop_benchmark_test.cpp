@@ -10,6 +10,8 @@
 #include "support/csv_support.h"
 #include "support/test_support.h"
 
+#include "support/process_support.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -24,13 +26,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 RecordingScore Score(const std::string& recording, int64_t xor_sum) {
   RecordingScore e;
@@ -297,7 +292,7 @@ TEST(LoopBenchmarkReport, JsonRoundTrips) {
   const fs::path dir = testing::ScratchDir("loop_benchmark_json");
   const LoopBenchmarkReport report = HandMadeReport();
   WriteBenchmarkJson(dir / "benchmark.json", report);
-  const json doc = json::parse(ReadText(dir / "benchmark.json"));
+  const json doc = json::parse(testing::ReadText(dir / "benchmark.json"));
   EXPECT_EQ(doc["format"], "calib-loop-benchmark/1");
   EXPECT_EQ(doc["aggregate"]["false_discoveries"]["all"]["successes"], 2);
   EXPECT_TRUE(doc["objects"][15]["holdout_xor_before"].is_null());  // NaN of the failed object
@@ -397,7 +392,7 @@ TEST(LoopBenchmarkHtml, ShowsTheRatesAndLinksEveryObject) {
   options.gnuplot.executable = "no-such-gnuplot";
   const HtmlReportSummary without = WriteBenchmarkHtml(dir / "without.html", report, options);
   EXPECT_FALSE(without.plots_made);
-  const std::string page = ReadText(dir / "without.html");
+  const std::string page = testing::ReadText(dir / "without.html");
   EXPECT_NE(page.find("This report has no plots"), std::string::npos);
   EXPECT_NE(page.find("<b>2 / 15 = 0.13</b>"), std::string::npos);  // false discoveries
   EXPECT_NE(page.find("5 / 6</td><td class=\"n\">0.83</td><td class=\"n\">[0.44, 0.97]"),
@@ -414,9 +409,9 @@ TEST(LoopBenchmarkHtml, ShowsTheRatesAndLinksEveryObject) {
   EXPECT_TRUE(with.plots_made);
   EXPECT_EQ(with.plots, 1);
   WriteBenchmarkHtml(dir / "b.html", report, options);
-  const std::string a = ReadText(dir / "a.html");
+  const std::string a = testing::ReadText(dir / "a.html");
   EXPECT_NE(a.find("<svg"), std::string::npos);
-  EXPECT_EQ(a, ReadText(dir / "b.html"));  // deterministic
+  EXPECT_EQ(a, testing::ReadText(dir / "b.html"));  // deterministic
 }
 
 // ---- running: selection, resume, failures ------------------------------------
@@ -497,7 +492,7 @@ TEST(LoopBenchmark, RunsEveryObjectAndWritesItsSummaryAndTheOutputs) {
   for (const std::string id : {"p-00", "p-01", "n-00"}) {
     const fs::path summary = dir / "out" / "objects" / id / "summary.json";
     ASSERT_TRUE(fs::exists(summary)) << summary;
-    EXPECT_EQ(ObjectOutcomeFromJson(json::parse(ReadText(summary)), summary.string()).id, id);
+    EXPECT_EQ(ObjectOutcomeFromJson(json::parse(testing::ReadText(summary)), summary.string()).id, id);
   }
   EXPECT_TRUE(fs::exists(result.json));
   EXPECT_TRUE(fs::exists(result.csv));
@@ -565,7 +560,7 @@ TEST(LoopBenchmark, AFailingLoopIsRecordedAndTheBenchmarkGoesOn) {
   EXPECT_EQ(failed.error, "segmentation failed on p-01");
   EXPECT_EQ(result.report.aggregate.failed, 1);
   ExpectRate(result.report.aggregate.detection.at(0).detected, 1, 1, "the failed object left out");
-  const json doc = json::parse(ReadText(result.json));
+  const json doc = json::parse(testing::ReadText(result.json));
   EXPECT_EQ(doc["objects"][1]["error"], "segmentation failed on p-01");
 
   // The failed object has no report: the next run tries it again, only it.

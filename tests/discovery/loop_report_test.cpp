@@ -8,6 +8,8 @@
 #include "support/test_support.h"
 
 #include <fmt/format.h>
+#include "support/process_support.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -21,13 +23,6 @@ namespace calib {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 int Count(const std::string& text, const std::string& what) {
   int n = 0;
@@ -160,7 +155,7 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   const LoopReport back = ReadLoopReportJson(dir / "report.json");
   EXPECT_EQ(ToJson(back).dump(), ToJson(report).dump());
 
-  const nlohmann::json doc = nlohmann::json::parse(ReadText(dir / "report.json"));
+  const nlohmann::json doc = nlohmann::json::parse(testing::ReadText(dir / "report.json"));
   EXPECT_EQ(doc["format"], "calib-loop-report/1");
   EXPECT_EQ(doc["effects_kept"], nlohmann::json::array({"plasticity"}));
   EXPECT_EQ(doc["final_model"], "base+plasticity") << "the last accepted stage";
@@ -282,7 +277,7 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
   // maps, and the tip of the recording held by a clamp.
   EXPECT_EQ(summary.plots, 8);
   EXPECT_EQ(summary.overlays, 1);
-  const std::string html = ReadText(dir / "report.html");
+  const std::string html = testing::ReadText(dir / "report.html");
   EXPECT_EQ(Count(html, "<svg"), summary.plots);
   EXPECT_EQ(Count(html, "</svg>"), summary.plots);
   EXPECT_EQ(html.find("<?xml"), std::string::npos) << "SVG inlined without its prologue";
@@ -305,14 +300,14 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
   const fs::path again = testing::ScratchDir("loop_report_html_again");
   MakeReport(again);
   WriteLoopReport(again, report);
-  EXPECT_EQ(ReadText(again / "report.html"), html);
-  EXPECT_EQ(ReadText(again / "report.json"), ReadText(dir / "report.json"));
+  EXPECT_EQ(testing::ReadText(again / "report.html"), html);
+  EXPECT_EQ(testing::ReadText(again / "report.json"), testing::ReadText(dir / "report.json"));
 
   // Embedded overlays.
   HtmlReportOptions embed;
   embed.embed_images = true;
   WriteLoopReportHtml(dir / "embedded.html", report, embed);
-  EXPECT_NE(ReadText(dir / "embedded.html").find("src=\"data:image/png;base64,iVBORw0KGgo"),
+  EXPECT_NE(testing::ReadText(dir / "embedded.html").find("src=\"data:image/png;base64,iVBORw0KGgo"),
             std::string::npos);
 }
 
@@ -324,7 +319,7 @@ TEST(LoopReportHtml, WithoutGnuplotSaysSoOrThrows) {
   const HtmlReportSummary summary = WriteLoopReportHtml(dir / "report.html", report, options);
   EXPECT_FALSE(summary.plots_made);
   EXPECT_EQ(summary.plots, 0);
-  const std::string html = ReadText(dir / "report.html");
+  const std::string html = testing::ReadText(dir / "report.html");
   EXPECT_EQ(html.find("<svg"), std::string::npos);
   EXPECT_NE(html.find("This report has no plots"), std::string::npos);
   EXPECT_NE(html.find("gnuplot-nox"), std::string::npos);

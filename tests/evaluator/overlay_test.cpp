@@ -41,12 +41,12 @@ std::string Str(const cv::Vec3b& v) {
 
 // Masks over a region of interest at frame (20, 30), 100 x 70 pixels:
 // object: frame rows 40..79, columns 30..79; mesh: rows 40..79, columns 60..109.
-struct Scene {
+struct OverlayScene {
   BitMask object{100, 70, 20, 30};
   BitMask mesh_mask{100, 70, 20, 30};
   Mesh mesh = testing::MakeGridMesh(4, 2, 12.5, Vec2(60, 40));
   std::vector<Disc> obstacles = {{Vec2(130.3, 100.6), 9.5}};
-  Scene() {
+  OverlayScene() {
     for (int y = 40; y < 80; ++y) {
       object.SetSpan(y - 30, 30 - 20, 80 - 20);
       mesh_mask.SetSpan(y - 30, 60 - 20, 110 - 20);
@@ -55,7 +55,7 @@ struct Scene {
 };
 
 TEST(RenderOverlay, IsATwoByTwoPanelOfTwiceTheFrameSize) {
-  const Scene s;
+  const OverlayScene s;
   const cv::Mat frame = GradientFrame();
   OverlayOptions options;
   options.frame_index = 7;
@@ -96,7 +96,7 @@ TEST(RenderOverlay, IsATwoByTwoPanelOfTwiceTheFrameSize) {
 }
 
 TEST(RenderOverlay, DifferencePanelShowsMissedAndExtraPixels) {
-  const Scene s;
+  const OverlayScene s;
   OverlayOptions options;
   const cv::Mat panel = RenderOverlay(GradientFrame(), s.mesh, s.mesh.rest_positions, {},
                                       s.object, s.mesh_mask, options);
@@ -118,7 +118,7 @@ TEST(RenderOverlay, DifferencePanelShowsMissedAndExtraPixels) {
 }
 
 TEST(RenderOverlay, RejectsBadInput) {
-  const Scene s;
+  const OverlayScene s;
   const std::vector<Vec2> too_few(3, Vec2::Zero());
   EXPECT_THROW(RenderOverlay(GradientFrame(), s.mesh, too_few, {}, s.object, s.mesh_mask, {}),
                std::invalid_argument);
@@ -136,7 +136,7 @@ TEST(RenderOverlay, RejectsBadInput) {
 }
 
 TEST(RenderOverlay, AcceptsGreyFramesAndBlownUpStates) {
-  const Scene s;
+  const OverlayScene s;
   cv::Mat grey(kHeight, kWidth, CV_8UC1, cv::Scalar(90));
   std::vector<Vec2> x = s.mesh.rest_positions;
   x[0] = Vec2(std::nan(""), 1e300);
@@ -149,7 +149,7 @@ TEST(RenderOverlay, AcceptsGreyFramesAndBlownUpStates) {
 TEST(OverlayVideoWriter, WritesAnMp4ThatReopensWithAllFrames) {
   const auto dir = testing::ScratchDir("overlay_video");
   const auto path = dir / "overlay.mp4";
-  Scene s;
+  OverlayScene s;
   Rasterizer rasterizer;
   OverlayVideoWriter video;
   ASSERT_TRUE(video.Open(path, 10.0, cv::Size(2 * kWidth, 2 * kHeight)));

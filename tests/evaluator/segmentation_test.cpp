@@ -42,7 +42,7 @@ std::vector<cv::Point> BlobOutline(cv::Point c, double scale) {
   return points;
 }
 
-struct Scene {
+struct MaskScene {
   cv::Mat bgr;    ///< the rendered, degraded frame
   cv::Mat truth;  ///< CV_8UC1 0/255: the object as drawn
 };
@@ -53,7 +53,7 @@ struct Scene {
 /// ones on the background, dark ones 3 px across on the object), then a
 /// slight blur. `extra` is painted in the object colour but is not part of
 /// the truth (distractors).
-Scene Render(const cv::Mat& truth, const cv::Mat& extra = cv::Mat(), uint64_t seed = 7) {
+MaskScene Render(const cv::Mat& truth, const cv::Mat& extra = cv::Mat(), uint64_t seed = 7) {
   cv::RNG rng(seed);
   cv::Mat image(truth.size(), CV_8UC3, kBackgroundBgr);
   image.setTo(ObjectBgr(), truth);
@@ -104,7 +104,7 @@ BitMask TruthOver(const cv::Mat& truth, const PixelRect& roi) {
 }
 
 TEST(SegmentFrame, RecoversNoisyObject) {
-  const Scene scene = Render(BlobTruth({480, 360}, {240, 180}, 140));
+  const MaskScene scene = Render(BlobTruth({480, 360}, {240, 180}, 140));
   const PixelRect roi = WholeFrame(scene.bgr);
   const BitMask mask = SegmentFrame(scene.bgr, kObjectHsv, roi, SegmentationOptions());
   ASSERT_EQ(mask.width(), 480);
@@ -114,7 +114,7 @@ TEST(SegmentFrame, RecoversNoisyObject) {
 }
 
 TEST(SegmentFrame, NeverSetsPixelsOutsideRoi) {
-  const Scene scene = Render(BlobTruth({480, 360}, {240, 180}, 140));
+  const MaskScene scene = Render(BlobTruth({480, 360}, {240, 180}, 140));
   const PixelRect roi{150, 60, 200, 170};  // cuts through the object
   const BitMask mask = SegmentFrame(scene.bgr, kObjectHsv, roi, SegmentationOptions());
   EXPECT_EQ(mask.width(), roi.width);
@@ -135,7 +135,7 @@ TEST(SegmentFrame, KeepsOnlyLargestComponent) {
   cv::Mat distractor(truth.size(), CV_8UC1, cv::Scalar(0));
   cv::circle(distractor, {40, 40}, 14, cv::Scalar(255), cv::FILLED);
   ASSERT_EQ(cv::countNonZero(truth & distractor), 0);
-  const Scene scene = Render(truth, distractor);
+  const MaskScene scene = Render(truth, distractor);
   const PixelRect roi = WholeFrame(scene.bgr);
   const BitMask mask = SegmentFrame(scene.bgr, kObjectHsv, roi, SegmentationOptions());
   const cv::Mat on = ToMat(mask);
@@ -150,7 +150,7 @@ TEST(SegmentFrame, FillsHolesOnlyWhenAsked) {
   const cv::Mat truth = BlobTruth({480, 360}, {240, 180}, 140);
   cv::Mat hole(truth.size(), CV_8UC1, cv::Scalar(0));
   cv::circle(hole, {230, 200}, 9, cv::Scalar(255), cv::FILLED);
-  const Scene scene = Render(truth & ~hole);
+  const MaskScene scene = Render(truth & ~hole);
   const PixelRect roi = WholeFrame(scene.bgr);
 
   SegmentationOptions opt;
@@ -165,7 +165,7 @@ TEST(SegmentFrame, FillsHolesOnlyWhenAsked) {
 }
 
 TEST(SegmentFrame, NoObjectGivesEmptyMask) {
-  const Scene scene = Render(cv::Mat(120, 160, CV_8UC1, cv::Scalar(0)));
+  const MaskScene scene = Render(cv::Mat(120, 160, CV_8UC1, cv::Scalar(0)));
   const BitMask mask = SegmentFrame(scene.bgr, kObjectHsv, WholeFrame(scene.bgr), {});
   EXPECT_EQ(mask.width(), 160);
   EXPECT_EQ(mask.Count(), 0);
@@ -229,7 +229,7 @@ Recording WriteSequenceRecording(const fs::path& dir) {
   fs::create_directories(dir / "frames");
   std::string track = "frame\n";
   for (int i = 0; i < kFrames; ++i) {
-    const Scene scene = Render(BlobTruth({200, 150}, {80 + 8 * i, 75}, 45), cv::Mat(), 11 + i);
+    const MaskScene scene = Render(BlobTruth({200, 150}, {80 + 8 * i, 75}, 45), cv::Mat(), 11 + i);
     char name[32];
     std::snprintf(name, sizeof(name), "%06d.png", i);
     EXPECT_TRUE(cv::imwrite((dir / "frames" / name).string(), scene.bgr));

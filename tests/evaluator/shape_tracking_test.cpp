@@ -22,7 +22,7 @@ namespace {
 
 using calib::testing::MakeGridMesh;
 
-constexpr int kWidth = 220, kHeight = 200;
+constexpr int kFrameWidth = 220, kFrameHeight = 200;
 
 // A 30 x 120 px strip with its top edge centred on (100, 40).
 Mesh Strip() { return MakeGridMesh(3, 12, 10.0, Vec2(85, 40)); }
@@ -42,7 +42,7 @@ BitMask PolygonMask(const std::vector<Vec2>& corners) {
     points.emplace_back(static_cast<int>(std::lround((c.x() - 0.5) * (1 << kShift))),
                         static_cast<int>(std::lround((c.y() - 0.5) * (1 << kShift))));
   }
-  cv::Mat image = cv::Mat::zeros(kHeight, kWidth, CV_8UC1);
+  cv::Mat image = cv::Mat::zeros(kFrameHeight, kFrameWidth, CV_8UC1);
   cv::fillPoly(image, std::vector<std::vector<cv::Point>>{points}, cv::Scalar(255), cv::LINE_8, kShift);
   return FromMat(image, 0, 0);
 }
@@ -134,7 +134,7 @@ TEST(ShapeTracking, ASwingDoesNotShrinkTheRestShape) {
 
 TEST(ShapeTracking, BadArgumentsAreNamed) {
   const Mesh mesh = Strip();
-  const std::vector<BitMask> masks(3, BitMask(kWidth, kHeight));
+  const std::vector<BitMask> masks(3, BitMask(kFrameWidth, kFrameHeight));
   const std::vector<uint8_t> none(mesh.NumNodes(), 0);
   const auto message = [](const auto& call) {
     try {

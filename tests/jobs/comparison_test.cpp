@@ -34,7 +34,7 @@ namespace {
 namespace fs = std::filesystem;
 
 #define EXPECT_CONTAINS(text, part) \
-  EXPECT_NE(std::string(text).find(part), std::string::npos) << "missing '" << (part) << "' in:\n" << (text)
+  EXPECT_NE(std::string(text).find(part), std::string::npos) << "text: " << (text) << "\nmissing: " << (part)
 
 using AnalyticFunction = std::function<double(const std::vector<double>& u)>;
 

@@ -49,7 +49,7 @@ JobSpec LockJobSpec(const fs::path& dir) {
   return spec;
 }
 
-JobCommandOptions SyntheticOptions() { return testing::SyntheticJobCommandOptions(); }
+JobCommandOptions LockOptions() { return testing::SyntheticJobCommandOptions(); }
 
 // The job created (status created, nothing run) and its id.
 int64_t CreateJob(const JobSpec& spec) {
@@ -94,7 +94,7 @@ TEST(JobLock, ASecondRunOrResumeOfAHeldJobIsRefusedNamingTheHolder) {
   const HeldJobLock held(store, job, spec.name);  // a live holder: this process
   for (const JobStart start : {JobStart::kRun, JobStart::kResume}) {
     try {
-      RunJob(spec, start, SyntheticOptions());
+      RunJob(spec, start, LockOptions());
       ADD_FAILURE() << "a held job was run";
     } catch (const JobLockedError& e) {
       EXPECT_CONTAINS(e.what(), "job 'locked' is held by process " + std::to_string(::getpid()) +
@@ -112,7 +112,7 @@ TEST(JobLock, ALiveHolderOnAnotherHostIsRefusedUntilItsHeartbeatIsStale) {
   const JobSpec spec = LockJobSpec(dir);
   const int64_t job = CreateJob(spec);
   ResultStore(spec.results.store).AcquireJobLock(job, OtherProcess(4242, "elsewhere"), kNever);
-  JobCommandOptions options = SyntheticOptions();
+  JobCommandOptions options = LockOptions();
   try {
     RunJob(spec, JobStart::kRun, options);  // its heartbeat is fresh (60 s allowed)
     ADD_FAILURE() << "a job held on another host was run";
@@ -138,7 +138,7 @@ TEST(JobLock, AnEndedProcessOnThisHostIsTakenOverAtOnce) {
   store.SetJobStatus(job, JobStatus::kRunning);  // as a SIGKILL leaves it
   EXPECT_CONTAINS(JobStatusText(store, store.Job(job)), "interrupted (left running by process");
   EXPECT_CONTAINS(JobStatusText(store, store.Job(job)), "calib resume");
-  const JobCommandResult result = RunJob(spec, JobStart::kResume, SyntheticOptions());
+  const JobCommandResult result = RunJob(spec, JobStart::kResume, LockOptions());
   EXPECT_EQ(result.run.status, JobStatus::kFinished);
 }
 
@@ -191,7 +191,7 @@ void ExpectResumeRefusesAChangeTo(const std::string& label, const std::string& f
                                   const std::string& message) {
   const fs::path dir = testing::ScratchDir("job_inputs_" + label);
   const JobSpec spec = LockJobSpec(dir);
-  JobCommandOptions options = SyntheticOptions();
+  JobCommandOptions options = LockOptions();
   options.wall_time_s = 1e-9;
   ASSERT_EQ(RunJob(spec, JobStart::kRun, options).run.status, JobStatus::kStopped) << label;
   options.wall_time_s.reset();
@@ -255,7 +255,7 @@ TEST(JobInputs, EveryVanishedOrNewFileIsNamed) {
 TEST(JobInputs, ResumeOfAnUnchangedJobGoesOn) {
   const fs::path dir = testing::ScratchDir("job_inputs_same");
   const JobSpec spec = LockJobSpec(dir);
-  JobCommandOptions options = SyntheticOptions();
+  JobCommandOptions options = LockOptions();
   options.wall_time_s = 1e-9;
   ASSERT_EQ(RunJob(spec, JobStart::kRun, options).run.status, JobStatus::kStopped);
   EXPECT_FALSE(ResultStore(spec.results.store).JobInputs(1).empty());
@@ -268,7 +268,7 @@ TEST(JobCommands, ResumeOfAFinishedJobWritesItsReportAgain) {
   // deleted since) is had without running anything again.
   const fs::path dir = testing::ScratchDir("job_report_again");
   const JobSpec spec = LockJobSpec(dir);
-  JobCommandOptions options = SyntheticOptions();
+  JobCommandOptions options = LockOptions();
   ASSERT_EQ(RunJob(spec, JobStart::kRun, options).run.status, JobStatus::kFinished);
   EXPECT_FALSE(fs::exists(spec.results.out_dir / "summary.txt"));
   options.write_report = true;

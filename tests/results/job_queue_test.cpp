@@ -12,15 +12,15 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const nlohmann::json kSpec = {{"name", "x"}};
+const nlohmann::json kQueuedSpec = {{"name", "x"}};
 
 TEST(JobQueue, HandsOutByPriorityThenSubmissionOrder) {
   const fs::path dir = testing::ScratchDir("queue_order");
   JobQueue queue(dir / "s.sqlite");
-  const int64_t a = queue.Add("a", kSpec, 0, false);
-  const int64_t b = queue.Add("b", kSpec, 5, false);
-  const int64_t c = queue.Add("c", kSpec, 0, true);
-  const int64_t d = queue.Add("d", kSpec, 5, false);
+  const int64_t a = queue.Add("a", kQueuedSpec, 0, false);
+  const int64_t b = queue.Add("b", kQueuedSpec, 5, false);
+  const int64_t c = queue.Add("c", kQueuedSpec, 0, true);
+  const int64_t d = queue.Add("d", kQueuedSpec, 5, false);
   std::vector<int64_t> order;
   while (const std::optional<QueueEntry> e = queue.ClaimNext()) {
     EXPECT_EQ(e->state, QueueState::kRunning);
@@ -35,9 +35,9 @@ TEST(JobQueue, HandsOutByPriorityThenSubmissionOrder) {
 TEST(JobQueue, ANameIsQueuedOnce) {
   const fs::path dir = testing::ScratchDir("queue_names");
   JobQueue queue(dir / "s.sqlite");
-  queue.Add("a", kSpec, 0, false);
+  queue.Add("a", kQueuedSpec, 0, false);
   try {
-    queue.Add("a", kSpec, 1, false);
+    queue.Add("a", kQueuedSpec, 1, false);
     ADD_FAILURE() << "a second entry of one name was queued";
   } catch (const StoreError& e) {
     EXPECT_NE(std::string(e.what()).find("queue job 'a': a job of that name is in the queue"),
@@ -51,8 +51,8 @@ TEST(JobQueue, OutlivesTheProcessAndRequeuesWhatWasRunning) {
   int64_t running = 0, done = 0, queued = 0;
   {
     JobQueue queue(dir / "s.sqlite");
-    running = queue.Add("running", kSpec, 9, false);
-    done = queue.Add("done", kSpec, 8, false);
+    running = queue.Add("running", kQueuedSpec, 9, false);
+    done = queue.Add("done", kQueuedSpec, 8, false);
     queued = queue.Add("queued", {{"name", "queued"}, {"seed", 3}}, 0, false);
     ASSERT_EQ(queue.ClaimNext()->id, running);
     ASSERT_EQ(queue.ClaimNext()->id, done);

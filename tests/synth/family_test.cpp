@@ -13,6 +13,8 @@
 #include "error_text.h"
 #include "support/test_support.h"
 
+#include "support/process_support.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -27,13 +29,6 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path Examples() { return fs::path(CALIB_SOURCE_DIR) / "examples" / "families"; }
-
-std::string Slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 // A small family: 3 cells (none, plasticity, a confusable friction cell).
 const char* kSmall = R"(
@@ -413,7 +408,7 @@ TEST(Family, PlanWritesTheManifestAndScenarioFilesOnly) {
   const FamilySummary summary = MakeFamily(plan, dir, options);
   EXPECT_EQ(summary.objects, 6);
   EXPECT_EQ(summary.recordings, 0);
-  EXPECT_EQ(Slurp(dir / "family.json"), FamilyManifestJson(plan));
+  EXPECT_EQ(testing::ReadText(dir / "family.json"), FamilyManifestJson(plan));
   for (const FamilyObject& o : plan.objects) {
     for (size_t r = 0; r < 2; ++r) {
       const fs::path file = dir / o.id / (o.recordings[r] + ".yaml");
@@ -428,7 +423,7 @@ TEST(Family, PlanWritesTheManifestAndScenarioFilesOnly) {
   EXPECT_EQ(MakeFamily(plan, one, options).objects, 1);
   EXPECT_TRUE(fs::exists(one / "plasticity-clear-01" / "push-b.yaml"));
   EXPECT_FALSE(fs::exists(one / "none-00"));
-  EXPECT_EQ(Slurp(one / "family.json"), FamilyManifestJson(plan));
+  EXPECT_EQ(testing::ReadText(one / "family.json"), FamilyManifestJson(plan));
   options.only = "plasticity-clear-07";
   const std::string error = testing::ErrorOf<FamilyError>([&] { MakeFamily(plan, one, options); });
   testing::ExpectMessageNames(error, "", {"plasticity-clear-07", "no such object", "plasticity-clear-01"});
@@ -467,7 +462,7 @@ cells:
     EXPECT_EQ(rec.num_frames, 9);  // 0.3 s at 30 fps
     EXPECT_EQ(rec.frame_width, 320);
     ASSERT_EQ(rec.obstacles.size(), 2u);
-    const auto truth = nlohmann::json::parse(Slurp(dir / "plasticity-clear-00" / recording / "truth.json"));
+    const auto truth = nlohmann::json::parse(testing::ReadText(dir / "plasticity-clear-00" / recording / "truth.json"));
     EXPECT_EQ(truth["effects"], nlohmann::json::array({"plasticity"}));
     EXPECT_EQ(truth["material"]["law"], "hencky");
     EXPECT_EQ(truth["scenario"]["object"]["shape"], "l_shape");

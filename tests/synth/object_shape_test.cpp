@@ -236,7 +236,7 @@ TEST(ObjectShape, UnevenStiffnessTurnsWithTheObject) {
 }
 
 // Parses `text` as a scenario named bad.yaml: refused, naming the file and `parts`.
-void ExpectErrorNames(const std::string& text, const std::vector<std::string>& parts) {
+void ExpectShapeErrorNames(const std::string& text, const std::vector<std::string>& parts) {
   const std::string error =
       testing::ErrorOf<ScenarioError>([&] { ParseScenario(text, "bad.yaml"); });
   testing::ExpectMessageNames(error, text, parts);
@@ -244,39 +244,39 @@ void ExpectErrorNames(const std::string& text, const std::vector<std::string>& p
 }
 
 TEST(ObjectShape, UnknownShapeSideOrCornerIsNamed) {
-  ExpectErrorNames("object: {shape: star}\n", {"object.shape", "'star'", "rectangle, waist, rounded"});
-  ExpectErrorNames("object: {shape: notched, notch: {side: top}}\n", {"object.notch.side", "'top'", "near"});
-  ExpectErrorNames("object: {shape: l_shape, cutout: {corner: top_left}}\n",
+  ExpectShapeErrorNames("object: {shape: star}\n", {"object.shape", "'star'", "rectangle, waist, rounded"});
+  ExpectShapeErrorNames("object: {shape: notched, notch: {side: top}}\n", {"object.notch.side", "'top'", "near"});
+  ExpectShapeErrorNames("object: {shape: l_shape, cutout: {corner: top_left}}\n",
                    {"object.cutout.corner", "'top_left'", "near_left"});
-  ExpectErrorNames("object: {shape: notched, notch: {sid: far}}\n", {"object.notch.sid", "unknown key"});
+  ExpectShapeErrorNames("object: {shape: notched, notch: {sid: far}}\n", {"object.notch.sid", "unknown key"});
 }
 
 TEST(ObjectShape, ShapeKeysOfAnotherShapeAreNamed) {
-  ExpectErrorNames("object: {corner_radius_mm: 5}\n", {"object.corner_radius_mm = 5", "only shape rounded"});
-  ExpectErrorNames("object: {shape: rounded, notch: {}}\n", {"object.notch", "only shape notched"});
-  ExpectErrorNames("object: {cutout: {}}\n", {"object.cutout", "only shape l_shape"});
-  ExpectErrorNames("object: {shape: rounded, waist_mm: 3}\n", {"object.waist_mm = 3", "shape is rounded"});
-  ExpectErrorNames("object: {shape: waist}\n", {"object.waist_mm = 0", "shape waist"});
+  ExpectShapeErrorNames("object: {corner_radius_mm: 5}\n", {"object.corner_radius_mm = 5", "only shape rounded"});
+  ExpectShapeErrorNames("object: {shape: rounded, notch: {}}\n", {"object.notch", "only shape notched"});
+  ExpectShapeErrorNames("object: {cutout: {}}\n", {"object.cutout", "only shape l_shape"});
+  ExpectShapeErrorNames("object: {shape: rounded, waist_mm: 3}\n", {"object.waist_mm = 3", "shape is rounded"});
+  ExpectShapeErrorNames("object: {shape: waist}\n", {"object.waist_mm = 0", "shape waist"});
 }
 
 TEST(ObjectShape, OutOfRangeShapeValuesAreNamed) {
-  ExpectErrorNames("object: {shape: rounded, corner_radius_mm: 40}\n", {"object.corner_radius_mm = 40"});
-  ExpectErrorNames("object: {shape: notched, notch: {position_fraction: 0.02}}\n",
+  ExpectShapeErrorNames("object: {shape: rounded, corner_radius_mm: 40}\n", {"object.corner_radius_mm = 40"});
+  ExpectShapeErrorNames("object: {shape: notched, notch: {position_fraction: 0.02}}\n",
                    {"object.notch.position_fraction = 0.02", "inside its side"});
-  ExpectErrorNames("object: {shape: notched, notch: {depth_mm: 40}}\n", {"object.notch.depth_mm = 40"});
-  ExpectErrorNames("object: {shape: notched, notch: {width_mm: 0.2}}\n", {"object.notch.width_mm = 0.2", "2 px"});
-  ExpectErrorNames("object: {shape: l_shape, cutout: {width_mm: 90}}\n", {"object.cutout.width_mm = 90"});
-  ExpectErrorNames("object: {shape: l_shape, cutout: {height_mm: -2}}\n", {"object.cutout.height_mm = -2"});
-  ExpectErrorNames("object: {rotation_deg: 200}\n", {"object.rotation_deg = 200"});
-  ExpectErrorNames("object: {width_mm: 110, rotation_deg: 45}\n",
+  ExpectShapeErrorNames("object: {shape: notched, notch: {depth_mm: 40}}\n", {"object.notch.depth_mm = 40"});
+  ExpectShapeErrorNames("object: {shape: notched, notch: {width_mm: 0.2}}\n", {"object.notch.width_mm = 0.2", "2 px"});
+  ExpectShapeErrorNames("object: {shape: l_shape, cutout: {width_mm: 90}}\n", {"object.cutout.width_mm = 90"});
+  ExpectShapeErrorNames("object: {shape: l_shape, cutout: {height_mm: -2}}\n", {"object.cutout.height_mm = -2"});
+  ExpectShapeErrorNames("object: {rotation_deg: 200}\n", {"object.rotation_deg = 200"});
+  ExpectShapeErrorNames("object: {width_mm: 110, rotation_deg: 45}\n",
                    {"object.rotation_deg = 45", "turned object fits"});
-  ExpectErrorNames("kind: hang\nobject: {rotation_deg: 10}\n", {"object.rotation_deg = 10", "kind hang"});
+  ExpectShapeErrorNames("kind: hang\nobject: {rotation_deg: 10}\n", {"object.rotation_deg = 10", "kind hang"});
   // Pushing 12 mm into the 44 mm left under a 20 mm cutout: past half of it.
-  ExpectErrorNames(
+  ExpectShapeErrorNames(
       "object: {shape: l_shape, cutout: {corner: near_left, width_mm: 40, height_mm: 20}}\n"
       "push: {position_fraction: 0.2, depth_mm: 24}\n",
       {"push.depth_mm = 24", "thickness under the finger"});
-  ExpectErrorNames("object: {rotation_deg: 30, width_mm: 60, height_mm: 40}\npush: {start_gap_mm: 60}\n",
+  ExpectShapeErrorNames("object: {rotation_deg: 30, width_mm: 60, height_mm: 40}\npush: {start_gap_mm: 60}\n",
                    {"push.start_gap_mm = 60", "finger starts inside the image"});
 }
 

@@ -11,6 +11,8 @@
 
 #include "support/test_support.h"
 
+#include "support/process_support.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/videoio.hpp>
@@ -36,13 +38,6 @@ effects:
 simulation: {fine_edge_px: 12, substeps: 4}
 )",
                        "small_push.yaml");
-}
-
-std::string Slurp(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 TEST(Synthesize, PushRoundTrip) {
@@ -102,7 +97,7 @@ TEST(Synthesize, PushRoundTrip) {
 
   // truth.json: the scenario, the effects on, per-frame figures.
   ASSERT_TRUE(std::filesystem::exists(dir / "rec" / "truth.json"));
-  const auto doc = nlohmann::json::parse(Slurp(dir / "rec" / "truth.json"));
+  const auto doc = nlohmann::json::parse(testing::ReadText(dir / "rec" / "truth.json"));
   EXPECT_EQ(doc["scenario"]["name"], "small_push");
   EXPECT_EQ(doc["effects"], nlohmann::json::array({"viscoelastic"}));
   EXPECT_EQ(doc["material"]["viscous_fraction"], 0.3);
@@ -110,8 +105,8 @@ TEST(Synthesize, PushRoundTrip) {
 
   // Same scenario, same seed: the same track and truth.
   Synthesize(scenario, dir / "again");
-  EXPECT_EQ(Slurp(dir / "rec" / "track.csv"), Slurp(dir / "again" / "track.csv"));
-  EXPECT_EQ(Slurp(dir / "rec" / "truth.json"), Slurp(dir / "again" / "truth.json"));
+  EXPECT_EQ(testing::ReadText(dir / "rec" / "track.csv"), testing::ReadText(dir / "again" / "track.csv"));
+  EXPECT_EQ(testing::ReadText(dir / "rec" / "truth.json"), testing::ReadText(dir / "again" / "truth.json"));
 }
 
 TEST(Synthesize, HangHasClampsAndNoForce) {
