@@ -178,7 +178,7 @@ nlohmann::json JobService::Submit(const nlohmann::json& request) {
     }
   }
   try {
-    queue_.Add(spec.name, ToJson(spec), priority, false);
+    queue_.Add(spec.name, QueueKind::kJob, ToJson(spec), priority, false);
   } catch (const StoreError& e) {  // submitted at the same moment by another request
     throw ServiceError(409, "spec", e.what());
   }
