@@ -37,6 +37,7 @@ struct ServiceCli {
   std::string server = "http://127.0.0.1:8080";
   fs::path token_file;
   fs::path spec;
+  std::string kind = "job";
   std::string name;
   int64_t priority = 0;
   bool wait = false;
@@ -72,14 +73,21 @@ std::string Best(const nlohmann::json& best) {
 }
 
 void PrintStatus(const nlohmann::json& job) {
-  fmt::print("job: {}\nstate: {}\nstatus: {}{}\nevaluations: {}/{} ({} failed)\nbest: {}\n",
-             job["name"].get<std::string>(), job["state"].get<std::string>(),
+  fmt::print("{}: {}\nstate: {}\nstatus: {}{}\nevaluations: {}/{} ({} failed)\nbest: {}\n",
+             job.value("kind", "job"), job["name"].get<std::string>(), job["state"].get<std::string>(),
              job["status"].get<std::string>(),
              job["stop_reason"].get<std::string>().empty()
                  ? ""
                  : " (" + job["stop_reason"].get<std::string>() + ")",
              job["evaluations"].dump(), job["budget"].dump(), job["failed"].dump(),
              Best(job["best"]));
+  if (job.contains("progress")) {
+    fmt::print("calibrations: {} finished of {}\n", job["progress"]["jobs_finished"].dump(),
+               job["progress"]["jobs"].dump());
+  }
+  if (job.contains("report") && !job["report"].is_null()) {
+    fmt::print("report: {}\n", job["report"].get<std::string>());
+  }
   if (!job["message"].get<std::string>().empty()) {
     fmt::print("message: {}\n", job["message"].get<std::string>());
   }
@@ -133,15 +141,15 @@ int Serve(ServiceCli& cli) {
 
 int Submit(ServiceCli& cli) {
   std::ifstream in(cli.spec);
-  if (!in) throw std::runtime_error(fmt::format("{}: cannot open job spec", cli.spec.string()));
+  if (!in) throw std::runtime_error(fmt::format("{}: cannot open {} spec", cli.spec.string(), cli.kind));
   std::stringstream text;
   text << in.rdbuf();
   service::ServiceClient client = Client(cli);
   const nlohmann::json answer =
-      client.Post("/api/v1/jobs", {{"spec", text.str()}, {"priority", cli.priority}});
+      client.Post("/api/v1/jobs", {{"kind", cli.kind}, {"spec", text.str()}, {"priority", cli.priority}});
   for (const auto& notice : answer["notices"]) spdlog::warn("{}", notice.get<std::string>());
   const std::string name = answer["name"].get<std::string>();
-  fmt::print("submitted: {} (priority {})\n", name, cli.priority);
+  fmt::print("submitted: {} {} (priority {})\n", cli.kind, name, cli.priority);
   if (!cli.wait) return 0;
   while (true) {
     const nlohmann::json job = client.Get("/api/v1/jobs/" + name);
@@ -172,10 +180,11 @@ int Jobs(ServiceCli& cli) {
     return 0;
   }
   const nlohmann::json answer = Client(cli).Get("/api/v1/jobs");
-  fmt::print("{:<24} {:<10} {:<10} {:>11}  {}\n", "name", "state", "status", "evaluations", "best");
+  fmt::print("{:<24} {:<10} {:<10} {:<10} {:>11}  {}\n", "name", "kind", "state", "status",
+             "evaluations", "best");
   for (const auto& job : answer["jobs"]) {
-    fmt::print("{:<24} {:<10} {:<10} {:>11}  {}\n", job["name"].get<std::string>(),
-               job["state"].get<std::string>(), job["status"].get<std::string>(),
+    fmt::print("{:<24} {:<10} {:<10} {:<10} {:>11}  {}\n", job["name"].get<std::string>(),
+               job.value("kind", "job"), job["state"].get<std::string>(), job["status"].get<std::string>(),
                fmt::format("{}/{}", job["evaluations"].dump(), job["budget"].dump()), Best(job["best"]));
   }
   return 0;
@@ -224,10 +233,15 @@ std::shared_ptr<ServiceCli> AddServiceSubcommands(CLI::App& app) {
                   "write no report (best parameters, overlays, summary) when a job stops");
   serve->add_flag("--no-video", cli->no_video, "write job reports without overlay videos");
 
-  cli->submit = app.add_subcommand("submit", "submit a job spec to a server");
-  cli->submit->add_option("job", cli->spec,
-                          "job spec file; its paths are relative to the server's data root")
+  cli->submit = app.add_subcommand("submit", "submit a job, loop or comparison spec to a server");
+  cli->submit->add_option("spec", cli->spec,
+                          "spec file; its paths are relative to the server's data root")
       ->required();
+  cli->submit->add_option("--kind", cli->kind,
+                          "job (a job spec, docs/job_spec.md), loop (calib loop's options, "
+                          "docs/service.md) or comparison (docs/compare.md)")
+      ->check(CLI::IsMember({"job", "loop", "comparison"}))
+      ->capture_default_str();
   cli->submit->add_option("--priority", cli->priority, "higher runs first")->capture_default_str();
   cli->submit->add_flag("--wait", cli->wait, "follow the job to its end (exit 0: finished)");
   AddClientOptions(cli->submit, cli.get());

@@ -2,6 +2,11 @@
 // The service's jobs: a queue in one results store (results/job_queue.h)
 // and a pool of workers that run queued jobs through RunJob (the same work
 // as `calib run` / `calib resume`: exact resume, the job lock, reports).
+// The queue holds loops (`calib loop`, discovery/loop_spec.h) and optimiser
+// comparisons (`calib compare-optimizers`) too, each run as its command runs
+// it in a folder of its own (<state_dir>/jobs/<name>/: its store, report and
+// files), resumed the way its command resumes; "job" below means any of the
+// three unless it says a calibration job.
 //
 // Submitted specs are validated before they are queued (ParseJobSpec, the
 // recordings read as `calib run` reads them); their paths are relative to
@@ -78,8 +83,9 @@ class JobService {
   /// queued for the next start. Idempotent.
   void Stop();
 
-  /// {"spec": object or YAML/JSON text, "priority": integer (default 0)}
-  /// -> {"name", "state": "queued", "notices": [...]}.
+  /// {"kind": "job" (default), "loop" or "comparison", "spec": object or
+  /// YAML/JSON text, "priority": integer (default 0)}
+  /// -> {"name", "kind", "state": "queued", "priority", "notices": [...]}.
   nlohmann::json Submit(const nlohmann::json& request);
   /// Every job: queue state, status and progress, by submission.
   nlohmann::json List() const;
@@ -90,16 +96,20 @@ class JobService {
   /// A cancelled, stopped or failed job is queued again to continue.
   nlohmann::json Resume(const std::string& name);
   /// {"evaluations": N} larger than the job's budget: queued to continue
-  /// to N (optimisers that allow it, search::BudgetExtendsExactly).
+  /// to N (calibration jobs whose optimiser allows it,
+  /// search::BudgetExtendsExactly).
   nlohmann::json ExtendBudget(const std::string& name, const nlohmann::json& request);
   /// Removes a job that is not running: its queue entry, its evaluations
-  /// and checkpoints, its report.
+  /// and checkpoints, its report (a loop's or a comparison's folder, its
+  /// store with it).
   nlohmann::json Delete(const std::string& name);
   /// The job, its summary and every evaluation.
   nlohmann::json Results(const std::string& name) const;
-  /// The best evaluation and its parameters (a parameter file's content).
+  /// The best evaluation and its parameters (a parameter file's content);
+  /// ServiceError 409 for a loop or a comparison.
   nlohmann::json Best(const std::string& name) const;
-  /// The files of the job's report folder (path, bytes).
+  /// The files of the job's folder (path, bytes), its results stores left
+  /// out.
   nlohmann::json Artefacts(const std::string& name) const;
   /// The file `relative` of the job's report folder (ServiceError 404 when
   /// absent, 400/403 for a path that leaves it).
@@ -108,7 +118,6 @@ class JobService {
   const ServiceOptions& options() const { return options_; }
 
  private:
-  JobSpec SpecOf(const nlohmann::json& canonical) const;
   QueueEntry Entry(const std::string& name) const;
   void Worker(bool prunes);
   /// Deletes the report folders past report_max_age_s.
