@@ -95,7 +95,24 @@ void PrintStatus(const nlohmann::json& job) {
 
 // Blocks the stop signals in this thread (and every thread it starts); a
 // thread of its own waits for one and stops the server.
+// The launcher of --mpi-hosts when none is named: beside calib (an
+// installation), else in the source tree calib was built from
+// (build/apps/calib).
+fs::path DefaultMpiLauncher(const fs::path& calib) {
+  for (const fs::path& candidate : {calib.parent_path() / "calib-mpirun.sh",
+                                    calib.parent_path() / ".." / ".." / "scripts" / "calib-mpirun.sh"}) {
+    if (fs::is_regular_file(candidate)) return candidate.lexically_normal();
+  }
+  throw std::invalid_argument(fmt::format(
+      "--mpi-hosts: no calib-mpirun.sh beside {} or in its source tree; name it with --mpi-launcher",
+      calib.string()));
+}
+
 int Serve(ServiceCli& cli) {
+  cli.service.calib_executable = fs::read_symlink("/proc/self/exe");
+  if (!cli.service.mpi_hosts.empty() && cli.service.mpi_launcher.empty()) {
+    cli.service.mpi_launcher = DefaultMpiLauncher(cli.service.calib_executable);
+  }
   cli.service.write_report = !cli.no_report;
   cli.service.report_video = !cli.no_video;
   cli.service.program_version = std::string("calib ") + CALIB_VERSION;
@@ -232,6 +249,15 @@ std::shared_ptr<ServiceCli> AddServiceSubcommands(CLI::App& app) {
   serve->add_flag("--no-report", cli->no_report,
                   "write no report (best parameters, overlays, summary) when a job stops");
   serve->add_flag("--no-video", cli->no_video, "write job reports without overlay videos");
+  serve->add_option("--mpi-hosts", cli->service.mpi_hosts,
+                    "run calibration jobs as MPI ranks on these hosts, H1:SLOTS,H2:SLOTS (rank 0 "
+                    "on the first; scripts/calib-mpirun.sh); the state folder, the data roots and "
+                    "calib at the same paths on every host");
+  serve->add_option("--mpi-launcher", cli->service.mpi_launcher,
+                    "the launcher of --mpi-hosts (default: calib-mpirun.sh beside calib, else "
+                    "scripts/calib-mpirun.sh of its source tree)");
+  serve->add_option("--mpirun-args", cli->service.mpirun_args,
+                    "extra mpirun arguments for --mpi-hosts (the launcher's --mpirun-args)");
 
   cli->submit = app.add_subcommand("submit", "submit a job, loop or comparison spec to a server");
   cli->submit->add_option("spec", cli->spec,

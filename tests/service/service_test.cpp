@@ -32,6 +32,7 @@
 
 #include <chrono>
 #include <fstream>
+#include <set>
 #include <thread>
 
 namespace calib {
@@ -247,6 +248,30 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   ASSERT_TRUE(again);
   EXPECT_EQ(again->status, 200) << "a finished job may be queued again: nothing to do";
   EXPECT_EQ(server.WaitDone("cancelled")["evaluations"], kBudget);
+}
+
+// --mpi-hosts: a job run by scripts/calib-mpirun.sh on three MPI ranks of
+// this machine (the manager and two workers) ends with the history of
+// `calib run` on threads.
+TEST_F(Service, AJobOnMpiHostsEndsWithTheHistoryOfCalibRun) {
+  const std::string mpiexec = CALIB_MPIEXEC;
+  if (mpiexec.empty()) GTEST_SKIP() << "no MPI launcher in this build";
+  ::setenv("MPIRUN", mpiexec.c_str(), 1);
+  const fs::path dir = testing::ScratchDir("service_mpi");
+  Server server(dir / "state", dir / "logs",
+                {"--no-report", "--mpi-hosts", "localhost:3", "--mpi-launcher",
+                 (fs::path(CALIB_SOURCE_DIR) / "scripts" / "calib-mpirun.sh").string(), "--mpirun-args",
+                 "--allow-run-as-root --oversubscribe --bind-to none --mca btl self,vader "
+                 "--mca btl_vader_single_copy_mechanism none"});
+  ASSERT_GT(server.port(), 0);
+  server.Submit(JobYaml("on_mpi", 3, 8));
+  const nlohmann::json done = server.WaitDone("on_mpi");
+  EXPECT_EQ(done["status"], "finished") << done.dump(1) << testing::ReadText(dir / "state" / "mpi" / "on_mpi.log");
+  const std::vector<EvaluationRecord> history = History(server.store(), "on_mpi");
+  testing::ExpectSameHistory(Reference(3, 8), history, "on three MPI ranks");
+  std::set<std::string> workers;
+  for (const EvaluationRecord& e : history) workers.insert(e.worker);
+  EXPECT_EQ(workers, (std::set<std::string>{"rank 1", "rank 2"})) << "evaluated by the worker ranks";
 }
 
 TEST_F(Service, AReportIsDeletedPastItsAgeLimitAndTheResultsStay) {

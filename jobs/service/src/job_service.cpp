@@ -54,6 +54,12 @@ bool ServiceOptions::IsValid(std::string* error) const {
                          report_max_age_s);
     return false;
   }
+  if (!mpi_hosts.empty() && (mpi_launcher.empty() || calib_executable.empty())) {
+    *error = fmt::format("ServiceOptions::mpi_hosts = '{}' needs mpi_launcher (--mpi-launcher, "
+                         "scripts/calib-mpirun.sh) and calib_executable",
+                         mpi_hosts);
+    return false;
+  }
   if (threads_per_job < 0) {
     *error = fmt::format("ServiceOptions::threads_per_job = {}. Violated: >= 0 (0: all cores)",
                          threads_per_job);

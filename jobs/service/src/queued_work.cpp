@@ -3,11 +3,17 @@
 #include "calib/discovery/loop_spec.h"
 #include "calib/jobs/comparison.h"
 #include "calib/jobs/job_commands.h"
+#include "calib/jobs/job_lock.h"
 #include "calib/service/data_roots.h"
 #include "calib/service/service_error.h"
+#include "mpi_launch.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <fstream>
+#include <thread>
 
 namespace calib::service {
 namespace {
@@ -125,9 +131,63 @@ ValidatedWork ValidateComparison(const std::string& text, const ServiceOptions& 
           nlohmann::json::array()};
 }
 
+// What a job's run ended with, as the store has it.
+WorkOutcome StoredOutcome(const ServiceOptions& options, const std::string& name) {
+  StoreOptions read_only;
+  read_only.read_only = true;
+  const std::optional<JobInfo> job = ResultStore(options.store(), read_only).FindJob(name);
+  if (!job) return {false, "not run"};
+  return {job->status == JobStatus::kStopped, fmt::format("{}: {}", ToString(job->status), job->stop_reason)};
+}
+
+// A manager started by an earlier server (killed; its launcher then told to
+// stop) may hold the job a moment longer: wait until it has stopped, as
+// calib-mpirun.sh waits before it resumes.
+void WaitForRelease(const ServiceOptions& options, const std::string& name,
+                    const std::function<bool()>& interrupted) {
+  const JobLockOptions lock;
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration<double>(lock.stale_after_s + lock.heartbeat_s);
+  while (std::chrono::steady_clock::now() < deadline && !interrupted()) {
+    ResultStore store(options.store());
+    const std::optional<JobInfo> job = store.FindJob(name);
+    if (!job) return;
+    const std::optional<JobLock> holder = store.JobLockHolder(job->id);
+    if (!holder || JobLockHolderStopped(*holder, NowUnixSeconds() - holder->heartbeat_unix_s, lock)) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+}
+
+// As `scripts/calib-mpirun.sh --hosts HOSTS SPEC` (calib run, or resume for
+// a job the store holds) with the spec the server runs, written to
+// <state_dir>/mpi/<name>.json; the launcher's output beside it (.log).
+WorkOutcome RunJobOnMpiHosts(const JobSpec& spec, const ServiceOptions& options,
+                             const std::function<bool()>& interrupted) {
+  const fs::path folder = options.state_dir / "mpi";
+  fs::create_directories(folder);
+  const fs::path spec_file = fs::absolute(folder / (spec.name + ".json"));
+  {
+    // Every path absolute: the ranks read the file where it is.
+    JobSpec absolute = spec;
+    absolute.base_dir.clear();
+    std::ofstream out(spec_file);
+    out << ToJson(absolute).dump(1) << "\n";
+    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", spec_file.string()));
+  }
+  std::vector<std::string> args = {"--progress", "log", "--progress-interval", "10"};
+  if (!options.write_report) args.push_back("--no-report");
+  if (!options.report_video) args.push_back("--no-video");
+  WaitForRelease(options, spec.name, interrupted);
+  const int code = RunOnMpiHosts(options, spec_file, args, folder / (spec.name + ".log"), interrupted);
+  WorkOutcome outcome = StoredOutcome(options, spec.name);
+  outcome.stopped = code == 4;
+  return outcome;
+}
+
 WorkOutcome RunJobEntry(const QueueEntry& entry, const ServiceOptions& options,
                         const std::function<bool()>& interrupted) {
   const JobSpec spec = ServiceJobSpec(entry.spec, options);
+  if (!options.mpi_hosts.empty()) return RunJobOnMpiHosts(spec, options, interrupted);
   JobCommandOptions run;
   run.threads = options.threads_per_job;
   run.write_report = options.write_report;

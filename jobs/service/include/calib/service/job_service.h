@@ -63,6 +63,18 @@ struct ServiceOptions {
   double report_max_age_s = 0.0;
   /// Recorded with every run of a job ("calib 0.1.0").
   std::string program_version = "calib";
+  /// Hosts calibration jobs run on as MPI ranks ("H1:SLOTS,H2:SLOTS", at
+  /// least 2 slots in all: rank 0 manages on the first host, the others
+  /// evaluate), through `mpi_launcher` (scripts/calib-mpirun.sh) with
+  /// `calib_executable` on every host; empty: on the server's threads.
+  /// Loops and comparisons run on the server's threads either way.
+  std::string mpi_hosts;
+  std::filesystem::path mpi_launcher;
+  /// Passed to the launcher's --mpirun-args (e.g. "--allow-run-as-root").
+  std::string mpirun_args;
+  /// The calib the launcher starts (the server's own, at the same path on
+  /// every host).
+  std::filesystem::path calib_executable;
 
   bool IsValid(std::string* error) const;
   std::filesystem::path store() const { return state_dir / "service.sqlite"; }
