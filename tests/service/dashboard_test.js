@@ -48,6 +48,11 @@ parameters:
   - {name: tau, lower: 0, upper: 0.5}
 `;
 
+// The job's evaluations: enough for a few seconds of search, so that its
+// plot is seen growing between the page's refreshes (every second) on a
+// fast machine too.
+const kBudget = 96;
+
 const jobYaml = (name, budget) => `
 name: ${name}
 train: [push_centre]
@@ -110,7 +115,7 @@ async function main() {
     await waitFor("the bad spec's message", async () =>
       (await page.$eval("#submit-result", (e) => e.textContent)).includes("budget.evaluations = '0'"), 10000);
 
-    await page.$eval("#spec", (e, v) => { e.value = v; }, jobYaml("from_dashboard", 48));
+    await page.$eval("#spec", (e, v) => { e.value = v; }, jobYaml("from_dashboard", kBudget));
     await page.click("#submit-form button");
     await page.waitForSelector('tr.job[data-name="from_dashboard"]', { timeout: 10000 });
     await page.click('tr.job[data-name="from_dashboard"]');
@@ -123,9 +128,9 @@ async function main() {
     await waitFor("the best parameters", async () =>
       (await page.$$("#parameters tr")).length === 6, 10000);
     await waitFor("the job finished in the table", async () =>
-      (await page.$eval('tr.job[data-name="from_dashboard"]', (e) => e.textContent)).includes("48/48"), 90000);
+      (await page.$eval('tr.job[data-name="from_dashboard"]', (e) => e.textContent)).includes(`${kBudget}/${kBudget}`), 90000);
     await waitFor("the job's detail at its end", async () =>
-      (await page.$eval("#detail-status", (e) => e.textContent)).includes("48/48"), 30000);
+      (await page.$eval("#detail-status", (e) => e.textContent)).includes(`${kBudget}/${kBudget}`), 30000);
     if (process.env.CALIB_SCREENSHOT_DIR) {
       await page.screenshot({ path: path.join(process.env.CALIB_SCREENSHOT_DIR, "dashboard.png"), fullPage: true });
     }
