@@ -72,15 +72,21 @@ std::string Best(const nlohmann::json& best) {
   return fmt::format("{} (#{})", best["score"].dump(), best["id"].dump());
 }
 
+// "E/BUDGET"; a loop's evaluations alone (its calibrations are decided as
+// it goes: no budget).
+std::string Evaluations(const nlohmann::json& job) {
+  if (job.value("kind", "job") == "loop") return job["evaluations"].dump();
+  return fmt::format("{}/{}", job["evaluations"].dump(), job["budget"].dump());
+}
+
 void PrintStatus(const nlohmann::json& job) {
-  fmt::print("{}: {}\nstate: {}\nstatus: {}{}\nevaluations: {}/{} ({} failed)\nbest: {}\n",
+  fmt::print("{}: {}\nstate: {}\nstatus: {}{}\nevaluations: {} ({} failed)\nbest: {}\n",
              job.value("kind", "job"), job["name"].get<std::string>(), job["state"].get<std::string>(),
              job["status"].get<std::string>(),
              job["stop_reason"].get<std::string>().empty()
                  ? ""
                  : " (" + job["stop_reason"].get<std::string>() + ")",
-             job["evaluations"].dump(), job["budget"].dump(), job["failed"].dump(),
-             Best(job["best"]));
+             Evaluations(job), job["failed"].dump(), Best(job["best"]));
   if (job.contains("progress")) {
     fmt::print("calibrations: {} finished of {}\n", job["progress"]["jobs_finished"].dump(),
                job["progress"]["jobs"].dump());
@@ -202,7 +208,7 @@ int Jobs(ServiceCli& cli) {
   for (const auto& job : answer["jobs"]) {
     fmt::print("{:<24} {:<10} {:<10} {:<10} {:>11}  {}\n", job["name"].get<std::string>(),
                job.value("kind", "job"), job["state"].get<std::string>(), job["status"].get<std::string>(),
-               fmt::format("{}/{}", job["evaluations"].dump(), job["budget"].dump()), Best(job["best"]));
+               Evaluations(job), Best(job["best"]));
   }
   return 0;
 }

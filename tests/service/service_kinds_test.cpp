@@ -1,13 +1,16 @@
 // Loops and optimiser comparisons queued on the service (`calib serve`), end
 // to end over HTTP at the smallest budgets that show it, on the bundled push
 // pair:
-//  - a loop submitted over HTTP decides as `calib loop` with the same options
-//    (the report's decisions and every calibration's history); its report
-//    is served, it has no one best, and it is deleted with its folder;
-//  - a comparison submitted over HTTP gives the runs and the report files of
-//    `calib compare-optimizers` of the same spec;
-//  - a loop cancelled, resumed and then killed with SIGKILL mid-way, the
-//    server restarted, ends with the decisions of an uninterrupted one;
+//  - a loop submitted over HTTP, cancelled, resumed, then killed with
+//    SIGKILL mid-way and continued by a restarted server, decides as an
+//    uninterrupted `calib loop` with the same options (the report's
+//    decisions and every calibration's history); `calib status` and `calib
+//    jobs --server` show it; its report is served, it has no one best, and
+//    it is deleted with its folder (one test, the reference loop running beside
+//    the server);
+//  - a comparison submitted through `calib submit --kind comparison` gives
+//    the runs and the report files of `calib compare-optimizers` of the same
+//    spec;
 //  - a bad loop or comparison spec gets a 400 naming the field, one reading
 //    outside the data roots or running an external optimiser a 403.
 
@@ -89,78 +92,19 @@ void ExpectSameStores(const fs::path& expected, const fs::path& actual) {
   }
 }
 
-// The reference loop, `calib loop` uninterrupted, run when first asked for.
-class ServiceKinds : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() { dir_ = new fs::path(testing::ScratchDir("service_kinds")); }
-  static void TearDownTestSuite() { delete dir_; }
-
-  static fs::path ReferenceLoop() {
-    const fs::path out = *dir_ / "reference_loop";
-    if (!fs::exists(out / "report.json")) {
-      const testing::ProcessResult run = testing::RunProcess(LoopArguments(out), *dir_);
-      EXPECT_EQ(run.exit_code, 0) << run.err;
-    }
-    return out;
-  }
-
-  static void ExpectTheReferenceLoop(const Server& server, const std::string& name) {
-    const fs::path reference = ReferenceLoop();
-    const json report = server.Get(fmt::format("/api/v1/jobs/{}/artefacts/report.json", name));
-    const json decisions = testing::LoopDecisions(report);
-    EXPECT_GE(decisions["stages"].size(), 2u) << "an effect tried: " << decisions.dump(1);
-    EXPECT_EQ(decisions, testing::LoopDecisions(ReadJson(reference / "report.json")))
-        << "the loop decides as calib loop";
-    ExpectSameStores(reference / "store.sqlite", server.folder(name) / "store.sqlite");
-  }
-
-  static fs::path* dir_;
-};
-
-fs::path* ServiceKinds::dir_ = nullptr;
-
-TEST_F(ServiceKinds, ALoopSubmittedOverHttpDecidesAsCalibLoop) {
-  const fs::path dir = testing::ScratchDir("service_loop");
-  Server server(dir / "state", dir / "logs");
-  ASSERT_GT(server.port(), 0);
-  const json submitted = server.Submit("loop", kLoopSpec);
-  EXPECT_EQ(submitted["kind"], "loop");
-  const json done = server.WaitDone("tiny_loop", 300);
-  ASSERT_FALSE(done.is_null());
-  EXPECT_EQ(done["kind"], "loop");
-  EXPECT_EQ(done["status"], "finished") << done.dump(1);
-  EXPECT_EQ(done["report"], "report.json");
-  EXPECT_GE(done["progress"]["jobs"].get<int>(), 2) << done.dump(1);
-  EXPECT_EQ(done["progress"]["jobs_finished"], done["progress"]["jobs"]);
-  ExpectTheReferenceLoop(server, "tiny_loop");
-
-  std::vector<std::string> files;
-  const json artefacts = server.Get("/api/v1/jobs/tiny_loop/artefacts");
-  for (const json& f : artefacts["files"]) files.push_back(f["path"]);
-  EXPECT_NE(std::find(files.begin(), files.end(), "report.html"), files.end());
-  EXPECT_EQ(std::find(files.begin(), files.end(), "store.sqlite"), files.end()) << "its store is not a file served";
-  httplib::Client client = server.Client();
-  const httplib::Result page = client.Get("/api/v1/jobs/tiny_loop/artefacts/report.html");
-  ASSERT_TRUE(page);
-  EXPECT_EQ(page->status, 200);
-  EXPECT_CONTAINS(page->get_header_value("Content-Type"), "text/html");
-  EXPECT_CONTAINS(page->get_header_value("Content-Security-Policy"), "default-src 'none'");
-  const json results = server.Get("/api/v1/jobs/tiny_loop/results");
-  EXPECT_EQ(results["jobs"].size(), done["progress"]["jobs"].get<size_t>());
-  EXPECT_EQ(results["report"]["effects_kept"], ReadJson(ReferenceLoop() / "report.json")["effects_kept"]);
-  const httplib::Result best = client.Get("/api/v1/jobs/tiny_loop/best");
-  ASSERT_TRUE(best);
-  EXPECT_EQ(best->status, 409) << best->body;
-  const httplib::Result budget = client.Post("/api/v1/jobs/tiny_loop/budget", R"({"evaluations": 9})", "application/json");
-  ASSERT_TRUE(budget);
-  EXPECT_EQ(budget->status, 409) << budget->body;
-  const httplib::Result deleted = client.Delete("/api/v1/jobs/tiny_loop");
-  ASSERT_TRUE(deleted);
-  EXPECT_EQ(deleted->status, 200) << deleted->body;
-  EXPECT_FALSE(fs::exists(server.folder("tiny_loop"))) << "its folder, store and report went with it";
+// The loop `name` of the server decides as the uninterrupted `calib loop`
+// whose folder is `reference`: the report's decisions, every calibration's
+// history.
+void ExpectTheReferenceLoop(const Server& server, const std::string& name, const fs::path& reference) {
+  const json report = server.Get(fmt::format("/api/v1/jobs/{}/artefacts/report.json", name));
+  const json decisions = testing::LoopDecisions(report);
+  EXPECT_GE(decisions["stages"].size(), 2u) << "an effect tried: " << decisions.dump(1);
+  EXPECT_EQ(decisions, testing::LoopDecisions(ReadJson(reference / "report.json")))
+      << "the loop decides as calib loop";
+  ExpectSameStores(reference / "store.sqlite", server.folder(name) / "store.sqlite");
 }
 
-TEST_F(ServiceKinds, AComparisonSubmittedOverHttpGivesTheRunsAndReportOfCalibCompareOptimizers) {
+TEST(ServiceKinds, AComparisonSubmittedThroughCalibSubmitGivesTheRunsAndReportOfCalibCompareOptimizers) {
   const fs::path dir = testing::ScratchDir("service_comparison");
   const fs::path spec = dir / "tiny.yaml";
   std::ofstream(spec) << ComparisonYaml("tiny", (kExamples / "push_centre").string());
@@ -172,7 +116,16 @@ TEST_F(ServiceKinds, AComparisonSubmittedOverHttpGivesTheRunsAndReportOfCalibCom
 
   Server server(dir / "state", dir / "logs");
   ASSERT_GT(server.port(), 0);
-  EXPECT_EQ(server.Submit("comparison", ComparisonYaml("tiny", "push_centre"))["kind"], "comparison");
+  // Through `calib submit --kind comparison --wait`, the spec's path
+  // relative to the server's data root.
+  std::ofstream(dir / "submitted.yaml") << ComparisonYaml("tiny", "push_centre");
+  const testing::ProcessResult submitted = server.RunClient(
+      {"submit", "--kind", "comparison", (dir / "submitted.yaml").string(), "--wait"}, dir / "logs");
+  EXPECT_EQ(submitted.exit_code, 0) << submitted.out << submitted.err;
+  EXPECT_CONTAINS(submitted.out, "submitted: comparison tiny (priority 0)");
+  EXPECT_CONTAINS(submitted.out, "comparison: tiny\nstate: done\nstatus: finished");
+  EXPECT_CONTAINS(submitted.out, "evaluations: 8/8");
+  EXPECT_CONTAINS(submitted.out, "report: report.html");
   const json done = server.WaitDone("tiny", 120);
   ASSERT_FALSE(done.is_null());
   EXPECT_EQ(done["status"], "finished") << done.dump(1);
@@ -194,8 +147,11 @@ TEST_F(ServiceKinds, AComparisonSubmittedOverHttpGivesTheRunsAndReportOfCalibCom
   EXPECT_EQ(listed["jobs"][0]["kind"], "comparison");
 }
 
-TEST_F(ServiceKinds, ALoopCancelledResumedAndKilledMidwayDecidesAsAnUninterruptedOne) {
+TEST(ServiceKinds, ALoopOverHttpCancelledResumedAndKilledMidwayDecidesAsCalibLoop) {
   const fs::path dir = testing::ScratchDir("service_loop_kill");
+  // The reference, `calib loop` uninterrupted, runs beside the server.
+  fs::create_directories(dir / "reference_logs");
+  testing::ChildProcess reference(LoopArguments(dir / "reference"), dir / "reference_logs");
   json spec = kLoopSpec;
   spec["name"] = "killed_loop";
   auto wait_evaluations = [](const Server& server, int n) {
@@ -209,7 +165,7 @@ TEST_F(ServiceKinds, ALoopCancelledResumedAndKilledMidwayDecidesAsAnUninterrupte
   {
     Server server(dir / "state", dir / "logs");
     ASSERT_GT(server.port(), 0);
-    server.Submit("loop", spec);
+    EXPECT_EQ(server.Submit("loop", spec)["kind"], "loop");
     wait_evaluations(server, 1);
     httplib::Client client = server.Client();
     const httplib::Result cancel = client.Post("/api/v1/jobs/killed_loop/cancel", "", "application/json");
@@ -230,11 +186,53 @@ TEST_F(ServiceKinds, ALoopCancelledResumedAndKilledMidwayDecidesAsAnUninterrupte
   Server server(dir / "state", dir / "logs2");
   ASSERT_GT(server.port(), 0);
   const json done = server.WaitDone("killed_loop", 300);
+  ASSERT_FALSE(done.is_null());
+  EXPECT_EQ(done["kind"], "loop");
   EXPECT_EQ(done["status"], "finished") << done.dump(1);
-  ExpectTheReferenceLoop(server, "killed_loop");
+  EXPECT_EQ(done["report"], "report.json");
+  EXPECT_GE(done["progress"]["jobs"].get<int>(), 2) << done.dump(1);
+  EXPECT_EQ(done["progress"]["jobs_finished"], done["progress"]["jobs"]);
+  const testing::ProcessResult referenced = reference.Wait(300);
+  ASSERT_EQ(referenced.exit_code, 0) << referenced.err;
+  ExpectTheReferenceLoop(server, "killed_loop", dir / "reference");
+
+  std::vector<std::string> files;
+  const json artefacts = server.Get("/api/v1/jobs/killed_loop/artefacts");
+  for (const json& f : artefacts["files"]) files.push_back(f["path"]);
+  EXPECT_NE(std::find(files.begin(), files.end(), "report.html"), files.end());
+  EXPECT_EQ(std::find(files.begin(), files.end(), "store.sqlite"), files.end()) << "its store is not a file served";
+  httplib::Client client = server.Client();
+  const httplib::Result page = client.Get("/api/v1/jobs/killed_loop/artefacts/report.html");
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200);
+  EXPECT_CONTAINS(page->get_header_value("Content-Type"), "text/html");
+  EXPECT_CONTAINS(page->get_header_value("Content-Security-Policy"), "default-src 'none'");
+  const testing::ProcessResult shown = server.RunClient({"status", "killed_loop"}, dir / "logs");
+  EXPECT_EQ(shown.exit_code, 0) << shown.err;
+  EXPECT_CONTAINS(shown.out, "loop: killed_loop\nstate: done\nstatus: finished");
+  EXPECT_CONTAINS(shown.out, fmt::format("evaluations: {} (", done["evaluations"].get<int>()));
+  EXPECT_CONTAINS(shown.out, "calibrations: ");
+  EXPECT_CONTAINS(shown.out, "report: report.json");
+  const testing::ProcessResult listed = server.RunClient({"jobs"}, dir / "logs");
+  EXPECT_EQ(listed.exit_code, 0) << listed.err;
+  EXPECT_CONTAINS(listed.out, "killed_loop");
+  EXPECT_CONTAINS(listed.out, " loop ");
+  const json results = server.Get("/api/v1/jobs/killed_loop/results");
+  EXPECT_EQ(results["jobs"].size(), done["progress"]["jobs"].get<size_t>());
+  EXPECT_EQ(results["report"]["effects_kept"], ReadJson(dir / "reference" / "report.json")["effects_kept"]);
+  const httplib::Result best = client.Get("/api/v1/jobs/killed_loop/best");
+  ASSERT_TRUE(best);
+  EXPECT_EQ(best->status, 409) << best->body;
+  const httplib::Result budget = client.Post("/api/v1/jobs/killed_loop/budget", R"({"evaluations": 9})", "application/json");
+  ASSERT_TRUE(budget);
+  EXPECT_EQ(budget->status, 409) << budget->body;
+  const httplib::Result deleted = client.Delete("/api/v1/jobs/killed_loop");
+  ASSERT_TRUE(deleted);
+  EXPECT_EQ(deleted->status, 200) << deleted->body;
+  EXPECT_FALSE(fs::exists(server.folder("killed_loop"))) << "its folder, store and report went with it";
 }
 
-TEST_F(ServiceKinds, BadLoopAndComparisonSpecsGetTheir4xxNamingTheField) {
+TEST(ServiceKinds, BadLoopAndComparisonSpecsGetTheir4xxNamingTheField) {
   const fs::path dir = testing::ScratchDir("service_kinds_bad");
   Server server(dir / "state", dir / "logs", {"--no-report"});
   ASSERT_GT(server.port(), 0);

@@ -96,10 +96,8 @@ TEST_F(Service, JobsSubmittedOverHttpAndThroughTheCliGiveTheHistoriesOfCalibRun)
 
   const fs::path spec = dir / "over_cli.yaml";
   std::ofstream(spec) << JobYaml("over_cli", 5, 8);
-  const testing::ProcessResult cli = testing::RunProcess(
-      {kCalib, "submit", spec.string(), "--server", server.url(), "--token-file",
-       (dir / "state" / "token").string(), "--priority", "3", "--wait"},
-      dir / "logs");
+  const testing::ProcessResult cli =
+      server.RunClient({"submit", spec.string(), "--priority", "3", "--wait"}, dir / "logs");
   EXPECT_EQ(cli.exit_code, 0) << cli.out << cli.err;
   EXPECT_CONTAINS(cli.out, "submitted: job over_cli (priority 3)");
   EXPECT_CONTAINS(cli.out, "status: finished");
@@ -140,11 +138,7 @@ TEST_F(Service, JobsSubmittedOverHttpAndThroughTheCliGiveTheHistoriesOfCalibRun)
     EXPECT_CONTAINS(openapi->body, "/api/v1/jobs/{name}/budget:");
   }
 
-  const std::vector<std::string> client_args = {"--server", server.url(), "--token-file",
-                                                (dir / "state" / "token").string()};
-  std::vector<std::string> jobs = {kCalib, "jobs"};
-  jobs.insert(jobs.end(), client_args.begin(), client_args.end());
-  const testing::ProcessResult listed = testing::RunProcess(jobs, dir / "logs");
+  const testing::ProcessResult listed = server.RunClient({"jobs"}, dir / "logs");
   EXPECT_EQ(listed.exit_code, 0) << listed.err;
   EXPECT_CONTAINS(listed.out, "over_http");
   EXPECT_CONTAINS(listed.out, "over_cli");
@@ -153,9 +147,7 @@ TEST_F(Service, JobsSubmittedOverHttpAndThroughTheCliGiveTheHistoriesOfCalibRun)
       {kCalib, "jobs", "--store", server.store().string()}, dir / "logs");
   EXPECT_EQ(from_store.exit_code, 0) << from_store.err;
   EXPECT_CONTAINS(from_store.out, "over_cli");
-  std::vector<std::string> status = {kCalib, "status", "over_cli"};
-  status.insert(status.end(), client_args.begin(), client_args.end());
-  const testing::ProcessResult shown = testing::RunProcess(status, dir / "logs");
+  const testing::ProcessResult shown = server.RunClient({"status", "over_cli"}, dir / "logs");
   EXPECT_EQ(shown.exit_code, 0) << shown.err;
   EXPECT_CONTAINS(shown.out, "status: finished");
 
@@ -224,10 +216,7 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   constexpr int kBudget = 96;
   server.Submit(JobYaml("cancelled", 3, kBudget));
   server.WaitEvaluations("cancelled", 5);
-  const testing::ProcessResult cancel = testing::RunProcess(
-      {kCalib, "cancel", "cancelled", "--server", server.url(), "--token-file",
-       (dir / "state" / "token").string()},
-      dir / "logs");
+  const testing::ProcessResult cancel = server.RunClient({"cancel", "cancelled"}, dir / "logs");
   EXPECT_EQ(cancel.exit_code, 0) << cancel.err;
   EXPECT_CONTAINS(cancel.out, "state: cancelling");
   const nlohmann::json stopped = server.WaitDone("cancelled");

@@ -75,6 +75,14 @@ class Server {
   std::string url() const { return fmt::format("http://127.0.0.1:{}", port_); }
   ChildProcess& process() { return *process_; }
   fs::path store() const { return state_ / "service.sqlite"; }
+  /// `calib ARGS... --server URL --token-file TOKEN`: a command-line client
+  /// (submit, status, cancel, jobs) of this server, run to its end.
+  ProcessResult RunClient(const std::vector<std::string>& args, const fs::path& log_dir) const {
+    std::vector<std::string> argv = {kCalib};
+    argv.insert(argv.end(), args.begin(), args.end());
+    argv.insert(argv.end(), {"--server", url(), "--token-file", (state_ / "token").string()});
+    return RunProcess(argv, log_dir);
+  }
   /// A job's report folder, or a loop's or a comparison's own folder.
   fs::path folder(const std::string& name) const { return state_ / "jobs" / name; }
 
