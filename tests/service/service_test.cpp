@@ -240,24 +240,66 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
 }
 
 // --mpi-hosts: a job run by scripts/calib-mpirun.sh on three MPI ranks of
-// this machine (the manager and two workers) ends with the history of
+// this machine (the manager and two workers), cancelled and resumed, then
+// its server killed with SIGKILL and restarted, ends with the history of
 // `calib run` on threads.
-TEST_F(Service, AJobOnMpiHostsEndsWithTheHistoryOfCalibRun) {
+TEST_F(Service, AJobOnMpiHostsCancelledResumedAndKilledEndsWithTheHistoryOfCalibRun) {
   const std::string mpiexec = CALIB_MPIEXEC;
   if (mpiexec.empty()) GTEST_SKIP() << "no MPI launcher in this build";
   ::setenv("MPIRUN", mpiexec.c_str(), 1);
   const fs::path dir = testing::ScratchDir("service_mpi");
-  Server server(dir / "state", dir / "logs",
-                {"--no-report", "--mpi-hosts", "localhost:3", "--mpi-launcher",
-                 (fs::path(CALIB_SOURCE_DIR) / "scripts" / "calib-mpirun.sh").string(), "--mpirun-args",
-                 "--allow-run-as-root --oversubscribe --bind-to none --mca btl self,vader "
-                 "--mca btl_vader_single_copy_mechanism none"});
+  const std::vector<std::string> mpi = {
+      "--no-report", "--mpi-hosts", "localhost:3", "--mpi-launcher",
+      (fs::path(CALIB_SOURCE_DIR) / "scripts" / "calib-mpirun.sh").string(), "--mpirun-args",
+      "--allow-run-as-root --oversubscribe --bind-to none --mca btl self,vader "
+      "--mca btl_vader_single_copy_mechanism none"};
+  const fs::path log = dir / "state" / "mpi" / "on_mpi.log";
+  // A budget the ranks need seconds for (they evaluate about 50 a second
+  // here), so that the cancel and the kill land while it runs.
+  constexpr int kBudget = 160;
+  {
+    Server server(dir / "state", dir / "logs", mpi);
+    ASSERT_GT(server.port(), 0);
+    server.Submit(JobYaml("on_mpi", 3, kBudget));
+    // Cancelled: SIGTERM to the launcher, the manager stops at a checkpoint.
+    server.WaitEvaluations("on_mpi", 5);
+    EXPECT_CONTAINS(server.RunClient({"cancel", "on_mpi"}, dir / "logs").out, "state: cancelling");
+    const nlohmann::json cancelled = server.WaitDone("on_mpi");
+    EXPECT_EQ(cancelled["state"], "cancelled") << cancelled.dump(1);
+    EXPECT_EQ(cancelled["status"], "stopped") << testing::ReadText(log);
+    const int before = cancelled["evaluations"].get<int>();
+    EXPECT_LT(before, kBudget) << "stopped before its end";
+    // Resumed (the launcher's calib resume), then the server killed: the
+    // kernel sends the launcher SIGTERM.
+    httplib::Client client = server.Client();
+    const httplib::Result resumed = client.Post("/api/v1/jobs/on_mpi/resume", "", "application/json");
+    ASSERT_TRUE(resumed);
+    EXPECT_EQ(resumed->status, 200) << resumed->body;
+    server.WaitEvaluations("on_mpi", before + 5);
+    server.process().Kill(SIGKILL);
+    server.process().Wait(30);
+  }
+  // The launcher heard of its server's death (it may still have let the
+  // manager finish the job meanwhile).
+  auto interruptions = [&log] {
+    const std::string text = testing::ReadText(log);
+    size_t n = 0;
+    for (size_t at = text.find("calib-mpirun: interrupted"); at != std::string::npos;
+         at = text.find("calib-mpirun: interrupted", at + 1)) {
+      ++n;
+    }
+    return n;
+  };
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  while (interruptions() < 2 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(interruptions(), 2u) << "the cancel and the server's death: " << testing::ReadText(log);
+  Server server(dir / "state", dir / "logs2", mpi);
   ASSERT_GT(server.port(), 0);
-  server.Submit(JobYaml("on_mpi", 3, 8));
   const nlohmann::json done = server.WaitDone("on_mpi");
-  EXPECT_EQ(done["status"], "finished") << done.dump(1) << testing::ReadText(dir / "state" / "mpi" / "on_mpi.log");
+  EXPECT_EQ(done["status"], "finished") << done.dump(1) << testing::ReadText(log);
   const std::vector<EvaluationRecord> history = History(server.store(), "on_mpi");
-  testing::ExpectSameHistory(Reference(3, 8), history, "on three MPI ranks");
+  testing::ExpectSameHistory(Reference(3, kBudget, kBudget), history,
+                             "on three MPI ranks, cancelled, resumed and killed");
   std::set<std::string> workers;
   for (const EvaluationRecord& e : history) workers.insert(e.worker);
   EXPECT_EQ(workers, (std::set<std::string>{"rank 1", "rank 2"})) << "evaluated by the worker ranks";

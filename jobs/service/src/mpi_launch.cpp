@@ -51,6 +51,13 @@ int RunOnMpiHosts(const ServiceOptions& options, const std::filesystem::path& sp
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid == 0) {
+    // The server's threads block the stop signals (a thread of its own waits
+    // for them) and ignore SIGPIPE; exec keeps both, and the launcher must
+    // hear SIGTERM to pass it on.
+    sigset_t none;
+    ::sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
+    ::signal(SIGPIPE, SIG_DFL);
     ::prctl(PR_SET_PDEATHSIG, SIGTERM);
     if (::getppid() != parent) ::_exit(127);  // the server died before prctl
     ::setpgid(0, 0);  // a terminal's signals are the server's to handle
