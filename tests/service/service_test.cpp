@@ -254,6 +254,15 @@ TEST_F(Service, AJobOnMpiHostsCancelledResumedAndKilledEndsWithTheHistoryOfCalib
       "--allow-run-as-root --oversubscribe --bind-to none --mca btl self,vader "
       "--mca btl_vader_single_copy_mechanism none"};
   const fs::path log = dir / "state" / "mpi" / "on_mpi.log";
+  fs::create_directories(dir / "logs");
+  for (const char* bad : {"localhost:1", "localhost:0,b:2", "a:2,,b", ":3"}) {
+    const testing::ProcessResult refused = testing::RunProcess(
+        {kCalib, "serve", "--data-root", kExamples.string(), "--state-dir", (dir / "bad").string(),
+         "--port", "0", "--mpi-hosts", bad, "--mpi-launcher", "/bin/true"},
+        dir / "logs");
+    EXPECT_EQ(refused.exit_code, 2) << bad << ": " << refused.err;
+    EXPECT_CONTAINS(refused.err, fmt::format("ServiceOptions::mpi_hosts = '{}'", bad));
+  }
   // A budget the ranks need seconds for (they evaluate about 50 a second
   // here), so that the cancel and the kill land while it runs.
   constexpr int kBudget = 160;

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 
 namespace calib::service {
@@ -26,6 +27,18 @@ bool IsStoreFile(const fs::path& path) {
     if (name.size() >= s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0) return true;
   }
   return false;
+}
+
+// "a:2,b" -> {"a:2", "b"} (empty items kept, to be refused).
+std::vector<std::string> SplitHosts(const std::string& list) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (true) {
+    const size_t comma = list.find(',', start);
+    out.push_back(list.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) return out;
+    start = comma + 1;
+  }
 }
 
 // Request fields of a submission.
@@ -53,6 +66,28 @@ bool ServiceOptions::IsValid(std::string* error) const {
     *error = fmt::format("ServiceOptions::report_max_age_s = {}. Violated: >= 0 (0: kept)",
                          report_max_age_s);
     return false;
+  }
+  if (!mpi_hosts.empty()) {
+    // HOST[:SLOTS],... with at least two slots: the manager and a worker.
+    int slots = 0;
+    for (const std::string& host : SplitHosts(mpi_hosts)) {
+      const size_t colon = host.find(':');
+      const std::string count = colon == std::string::npos ? "1" : host.substr(colon + 1);
+      const bool digits = !count.empty() && count.size() < 6 &&
+                          std::all_of(count.begin(), count.end(), [](char c) { return c >= '0' && c <= '9'; });
+      if (host.substr(0, colon).empty() || !digits || std::stoi(count) < 1) {
+        *error = fmt::format("ServiceOptions::mpi_hosts = '{}': '{}' is not HOST or HOST:SLOTS (SLOTS >= 1)",
+                             mpi_hosts, host);
+        return false;
+      }
+      slots += std::stoi(count);
+    }
+    if (slots < 2) {
+      *error = fmt::format("ServiceOptions::mpi_hosts = '{}': {} slot(s). Violated: >= 2 (the manager "
+                           "and a worker rank)",
+                           mpi_hosts, slots);
+      return false;
+    }
   }
   if (!mpi_hosts.empty() && (mpi_launcher.empty() || calib_executable.empty())) {
     *error = fmt::format("ServiceOptions::mpi_hosts = '{}' needs mpi_launcher (--mpi-launcher, "
