@@ -166,7 +166,10 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
     options.preparation.cache_dir = f.cache_dir;
   }
   std::string command;
-  for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
+  for (int i = 0; i < argc; ++i) {
+    if (i > 0) command += ' ';
+    command += argv[i];
+  }
   options.command = command;
   return options;
 }

@@ -37,6 +37,7 @@ struct ServiceCli {
   std::string server = "http://127.0.0.1:8080";
   fs::path token_file;
   fs::path spec;
+  std::string kind = "job";
   std::string name;
   int64_t priority = 0;
   bool wait = false;
@@ -71,15 +72,28 @@ std::string Best(const nlohmann::json& best) {
   return fmt::format("{} (#{})", best["score"].dump(), best["id"].dump());
 }
 
+// "E/BUDGET"; a loop's evaluations alone (its calibrations are decided as
+// it goes: no budget).
+std::string Evaluations(const nlohmann::json& job) {
+  if (job.value("kind", "job") == "loop") return job["evaluations"].dump();
+  return fmt::format("{}/{}", job["evaluations"].dump(), job["budget"].dump());
+}
+
 void PrintStatus(const nlohmann::json& job) {
-  fmt::print("job: {}\nstate: {}\nstatus: {}{}\nevaluations: {}/{} ({} failed)\nbest: {}\n",
-             job["name"].get<std::string>(), job["state"].get<std::string>(),
+  fmt::print("{}: {}\nstate: {}\nstatus: {}{}\nevaluations: {} ({} failed)\nbest: {}\n",
+             job.value("kind", "job"), job["name"].get<std::string>(), job["state"].get<std::string>(),
              job["status"].get<std::string>(),
              job["stop_reason"].get<std::string>().empty()
                  ? ""
                  : " (" + job["stop_reason"].get<std::string>() + ")",
-             job["evaluations"].dump(), job["budget"].dump(), job["failed"].dump(),
-             Best(job["best"]));
+             Evaluations(job), job["failed"].dump(), Best(job["best"]));
+  if (job.contains("progress")) {
+    fmt::print("calibrations: {} finished of {}\n", job["progress"]["jobs_finished"].dump(),
+               job["progress"]["jobs"].dump());
+  }
+  if (job.contains("report") && !job["report"].is_null()) {
+    fmt::print("report: {}\n", job["report"].get<std::string>());
+  }
   if (!job["message"].get<std::string>().empty()) {
     fmt::print("message: {}\n", job["message"].get<std::string>());
   }
@@ -87,7 +101,24 @@ void PrintStatus(const nlohmann::json& job) {
 
 // Blocks the stop signals in this thread (and every thread it starts); a
 // thread of its own waits for one and stops the server.
+// The launcher of --mpi-hosts when none is named: beside calib (an
+// installation), else in the source tree calib was built from
+// (build/apps/calib).
+fs::path DefaultMpiLauncher(const fs::path& calib) {
+  for (const fs::path& candidate : {calib.parent_path() / "calib-mpirun.sh",
+                                    calib.parent_path() / ".." / ".." / "scripts" / "calib-mpirun.sh"}) {
+    if (fs::is_regular_file(candidate)) return candidate.lexically_normal();
+  }
+  throw std::invalid_argument(fmt::format(
+      "--mpi-hosts: no calib-mpirun.sh beside {} or in its source tree; name it with --mpi-launcher",
+      calib.string()));
+}
+
 int Serve(ServiceCli& cli) {
+  cli.service.calib_executable = fs::read_symlink("/proc/self/exe");
+  if (!cli.service.mpi_hosts.empty() && cli.service.mpi_launcher.empty()) {
+    cli.service.mpi_launcher = DefaultMpiLauncher(cli.service.calib_executable);
+  }
   cli.service.write_report = !cli.no_report;
   cli.service.report_video = !cli.no_video;
   cli.service.program_version = std::string("calib ") + CALIB_VERSION;
@@ -133,15 +164,15 @@ int Serve(ServiceCli& cli) {
 
 int Submit(ServiceCli& cli) {
   std::ifstream in(cli.spec);
-  if (!in) throw std::runtime_error(fmt::format("{}: cannot open job spec", cli.spec.string()));
+  if (!in) throw std::runtime_error(fmt::format("{}: cannot open {} spec", cli.spec.string(), cli.kind));
   std::stringstream text;
   text << in.rdbuf();
   service::ServiceClient client = Client(cli);
   const nlohmann::json answer =
-      client.Post("/api/v1/jobs", {{"spec", text.str()}, {"priority", cli.priority}});
+      client.Post("/api/v1/jobs", {{"kind", cli.kind}, {"spec", text.str()}, {"priority", cli.priority}});
   for (const auto& notice : answer["notices"]) spdlog::warn("{}", notice.get<std::string>());
   const std::string name = answer["name"].get<std::string>();
-  fmt::print("submitted: {} (priority {})\n", name, cli.priority);
+  fmt::print("submitted: {} {} (priority {})\n", cli.kind, name, cli.priority);
   if (!cli.wait) return 0;
   while (true) {
     const nlohmann::json job = client.Get("/api/v1/jobs/" + name);
@@ -172,11 +203,12 @@ int Jobs(ServiceCli& cli) {
     return 0;
   }
   const nlohmann::json answer = Client(cli).Get("/api/v1/jobs");
-  fmt::print("{:<24} {:<10} {:<10} {:>11}  {}\n", "name", "state", "status", "evaluations", "best");
+  fmt::print("{:<24} {:<10} {:<10} {:<10} {:>11}  {}\n", "name", "kind", "state", "status",
+             "evaluations", "best");
   for (const auto& job : answer["jobs"]) {
-    fmt::print("{:<24} {:<10} {:<10} {:>11}  {}\n", job["name"].get<std::string>(),
-               job["state"].get<std::string>(), job["status"].get<std::string>(),
-               fmt::format("{}/{}", job["evaluations"].dump(), job["budget"].dump()), Best(job["best"]));
+    fmt::print("{:<24} {:<10} {:<10} {:<10} {:>11}  {}\n", job["name"].get<std::string>(),
+               job.value("kind", "job"), job["state"].get<std::string>(), job["status"].get<std::string>(),
+               Evaluations(job), Best(job["best"]));
   }
   return 0;
 }
@@ -223,11 +255,25 @@ std::shared_ptr<ServiceCli> AddServiceSubcommands(CLI::App& app) {
   serve->add_flag("--no-report", cli->no_report,
                   "write no report (best parameters, overlays, summary) when a job stops");
   serve->add_flag("--no-video", cli->no_video, "write job reports without overlay videos");
+  serve->add_option("--mpi-hosts", cli->service.mpi_hosts,
+                    "run calibration jobs as MPI ranks on these hosts, H1:SLOTS,H2:SLOTS (rank 0 "
+                    "on the first; scripts/calib-mpirun.sh); the state folder, the data roots and "
+                    "calib at the same paths on every host");
+  serve->add_option("--mpi-launcher", cli->service.mpi_launcher,
+                    "the launcher of --mpi-hosts (default: calib-mpirun.sh beside calib, else "
+                    "scripts/calib-mpirun.sh of its source tree)");
+  serve->add_option("--mpirun-args", cli->service.mpirun_args,
+                    "extra mpirun arguments for --mpi-hosts (the launcher's --mpirun-args)");
 
-  cli->submit = app.add_subcommand("submit", "submit a job spec to a server");
-  cli->submit->add_option("job", cli->spec,
-                          "job spec file; its paths are relative to the server's data root")
+  cli->submit = app.add_subcommand("submit", "submit a job, loop or comparison spec to a server");
+  cli->submit->add_option("spec", cli->spec,
+                          "spec file; its paths are relative to the server's data root")
       ->required();
+  cli->submit->add_option("--kind", cli->kind,
+                          "job (a job spec, docs/job_spec.md), loop (calib loop's options, "
+                          "docs/service.md) or comparison (docs/compare.md)")
+      ->check(CLI::IsMember({"job", "loop", "comparison"}))
+      ->capture_default_str();
   cli->submit->add_option("--priority", cli->priority, "higher runs first")->capture_default_str();
   cli->submit->add_flag("--wait", cli->wait, "follow the job to its end (exit 0: finished)");
   AddClientOptions(cli->submit, cli.get());

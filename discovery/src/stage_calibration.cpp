@@ -269,7 +269,12 @@ std::pair<ParameterValues, double> StageCalibrator::RunJob(const std::string& na
   const std::unique_ptr<BatchEvaluator> evaluator = MakeEvaluator(objective);
   const int64_t job = FindOrCreateJob(spec);
   RunControl control;
+  control.interrupted = o_.interrupted;
   const RunSummary run = RunCalibration(spec.request(), store_, job, *evaluator, control);
+  if (run.status == JobStatus::kStopped && o_.interrupted && o_.interrupted()) {
+    throw LoopStopped(fmt::format("loop: stopped in calibration {} after {} evaluations ({})",
+                                  name, run.evaluations, run.stop_reason));
+  }
   fit->evaluations += static_cast<int>(run.evaluations);
   fit->jobs.push_back(job);
   if (!run.best) {

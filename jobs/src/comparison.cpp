@@ -93,6 +93,8 @@ ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem
   job_options.lock = options.lock;
   job_options.program_version = options.program_version;
   job_options.command = "compare-optimizers";
+  job_options.handle_signals = options.handle_signals;
+  job_options.interrupted = options.interrupted;
   job_options.make_objective = options.make_objective ? options.make_objective : SharedRecordingObjective();
 
   for (size_t i = 0; i < spec.runs.size(); ++i) {

@@ -586,9 +586,7 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
   return spec;
 }
 
-namespace spec_reader {
-
-bool ValidName(const std::string& name) {
+bool IsValidSpecName(const std::string& name) {
   if (name.empty()) return false;
   return std::all_of(name.begin(), name.end(), [](char c) {
     return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
@@ -612,6 +610,8 @@ YAML::Node LoadSpecYaml(const std::string& text, const std::string& source) {
   if (root.IsDefined() && !root.IsNull()) CheckYamlValues(root, source);
   return root;
 }
+
+namespace spec_reader {
 
 nlohmann::json ReadOptimizerSettings(yaml_reader::MapReader& o, const std::string& path, const std::string& name) {
   nlohmann::json out = nlohmann::json::object();
@@ -659,19 +659,22 @@ JobSpec LoadJobSpec(const std::filesystem::path& path, const JobSpecParseOptions
   return ParseJobSpec(text, path.string(), base, options);
 }
 
-void CheckRecordings(const JobSpec& spec) {
+void CheckRecordings(const JobSpec& spec) { CheckRecordings(spec.source, spec.train, spec.holdout); }
+
+void CheckRecordings(const std::string& source, const std::vector<std::filesystem::path>& train,
+                     const std::vector<std::filesystem::path>& holdout) {
   auto check = [&](const std::vector<std::filesystem::path>& dirs, const char* key) {
     for (size_t i = 0; i < dirs.size(); ++i) {
       try {
         (void)LoadRecording(dirs[i]);
       } catch (const std::exception& e) {
-        throw JobSpecError(fmt::format("{}: {}[{}] = '{}': {}", spec.source, key, i,
+        throw JobSpecError(fmt::format("{}: {}[{}] = '{}': {}", source, key, i,
                                        dirs[i].string(), e.what()));
       }
     }
   };
-  check(spec.train, "train");
-  check(spec.holdout, "holdout");
+  check(train, "train");
+  check(holdout, "holdout");
 }
 
 }  // namespace calib

@@ -6,6 +6,7 @@
 
 #include "calib/core/yaml_map_reader.h"
 #include "calib/jobs/job_spec.h"
+#include "calib/jobs/spec_text.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -25,11 +26,9 @@ using yaml_reader::Show;
 nlohmann::json YamlToJson(const YAML::Node& n);
 
 /// Whether `name` may name a job: non-empty letters, digits, '_', '-', '.'.
-bool ValidName(const std::string& name);
+inline bool ValidName(const std::string& name) { return IsValidSpecName(name); }
 
-/// YAML (or JSON) text as a document: UTF-8 text, valid YAML, and small
-/// once its aliases are expanded, else a JobSpecError naming `source`.
-YAML::Node LoadSpecYaml(const std::string& text, const std::string& source);
+using calib::LoadSpecYaml;
 
 /// The text of a spec file; JobSpecError "<path>: cannot open <what>".
 std::string ReadSpecFile(const std::filesystem::path& path, const char* what);

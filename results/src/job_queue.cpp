@@ -18,8 +18,14 @@ constexpr auto kQueueStateNames = std::to_array<EnumName<QueueState>>({
     {QueueState::kCancelled, "cancelled"},
 });
 
+constexpr auto kQueueKindNames = std::to_array<EnumName<QueueKind>>({
+    {QueueKind::kJob, "job"},
+    {QueueKind::kLoop, "loop"},
+    {QueueKind::kComparison, "comparison"},
+});
+
 constexpr const char* kColumns =
-    "id, name, spec_json, priority, submitted_unix_s, state, start, message";
+    "id, name, spec_json, priority, submitted_unix_s, state, start, message, kind";
 
 }  // namespace
 
@@ -27,6 +33,12 @@ std::string ToString(QueueState state) { return EnumToString(kQueueStateNames, s
 
 QueueState QueueStateFromString(const std::string& name) {
   return EnumFromString(kQueueStateNames, "queue state", name);
+}
+
+std::string ToString(QueueKind kind) { return EnumToString(kQueueKindNames, kind); }
+
+QueueKind QueueKindFromString(const std::string& name) {
+  return EnumFromString(kQueueKindNames, "queue entry kind", name);
 }
 
 struct JobQueue::Impl {
@@ -40,6 +52,7 @@ struct JobQueue::Impl {
     try {
       e.spec = nlohmann::json::parse(s.Text(2));
       e.state = QueueStateFromString(s.Text(5));
+      e.kind = QueueKindFromString(s.Text(8));
     } catch (const std::exception& ex) {
       throw StoreError(fmt::format("{}: {} (queue entry {}): {}", db.path().string(), op, e.id,
                                    ex.what()));
@@ -59,8 +72,8 @@ JobQueue::JobQueue(const std::filesystem::path& store) {
 
 JobQueue::~JobQueue() = default;
 
-int64_t JobQueue::Add(const std::string& name, const nlohmann::json& spec, int64_t priority,
-                      bool resume) {
+int64_t JobQueue::Add(const std::string& name, QueueKind kind, const nlohmann::json& spec,
+                      int64_t priority, bool resume) {
   std::lock_guard lock(mutex_);
   const std::string op = fmt::format("queue job '{}'", name);
   sqlite::Transaction tx(impl_->db, op);
@@ -73,11 +86,11 @@ int64_t JobQueue::Add(const std::string& name, const nlohmann::json& spec, int64
     }
   }
   auto s = impl_->db.Prepare(
-      "INSERT INTO job_queue(name, spec_json, priority, submitted_unix_s, state, start) "
-      "VALUES (?1, ?2, ?3, ?4, 'queued', ?5)",
+      "INSERT INTO job_queue(name, spec_json, priority, submitted_unix_s, state, start, kind) "
+      "VALUES (?1, ?2, ?3, ?4, 'queued', ?5, ?6)",
       op);
   s.Bind(1, name).Bind(2, spec.dump()).Bind(3, priority).Bind(4, NowUnixSeconds());
-  s.Bind(5, resume ? "resume" : "run");
+  s.Bind(5, resume ? "resume" : "run").Bind(6, ToString(kind));
   s.Run();
   const int64_t id = sqlite3_last_insert_rowid(impl_->db.handle());
   tx.Commit();

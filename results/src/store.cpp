@@ -19,10 +19,10 @@ namespace {
 
 // Version 1: jobs, evaluations, checkpoints. Version 2 adds job_locks and
 // job_inputs, version 3 job_runs and job_queue, version 4 pruned
-// evaluations; an older store is migrated when opened for writing and read
-// as it is (no locks, inputs, runs, queue or pruned evaluations) when opened
-// read-only.
-constexpr int kSchemaVersion = 4;
+// evaluations, version 5 the kind of a queue entry; an older store is
+// migrated when opened for writing and read as it is (no locks, inputs, runs,
+// queue or pruned evaluations) when opened read-only.
+constexpr int kSchemaVersion = 5;
 // PRAGMA application_id: 'CALB', so a foreign SQLite file is recognised.
 constexpr int64_t kApplicationId = 0x43414C42;
 
@@ -139,6 +139,11 @@ DROP TABLE evaluations;
 ALTER TABLE evaluations_v4 RENAME TO evaluations;
 )sql";
 
+// What version 5 adds to version 4: what a queue entry runs (job, loop or
+// comparison; results/job_queue.h); entries queued before are jobs.
+constexpr const char* kSchemaVersion5 =
+    "ALTER TABLE job_queue ADD COLUMN kind TEXT NOT NULL DEFAULT 'job';";
+
 constexpr const char* kEvaluationColumns =
     "id, parameters_json, x_json, status, score, mean_iou, iou_min, iou_max, failure_frame, "
     "pruned_recording, pruned_frame, reason, eval_time_s, worker, attempt, detail_json, "
@@ -246,6 +251,7 @@ void ResultStore::Impl::OpenSchema() {
       db.Exec(kEvaluationsIndex, "create schema");
       db.Exec(kSchemaVersion2, "create schema");
       db.Exec(kSchemaVersion3, "create schema");
+      db.Exec(kSchemaVersion5, "create schema");
       db.Exec(fmt::format("PRAGMA application_id={}; PRAGMA user_version={}", kApplicationId,
                           kSchemaVersion),
               "create schema (version)");
@@ -276,6 +282,12 @@ void ResultStore::Impl::Migrate(int64_t from) {
     db.Exec(fmt::format(fmt::runtime(kEvaluationsTable), "evaluations_v4"), op);
     db.Exec(kMigrateEvaluationsTo4, op);
     db.Exec(kEvaluationsIndex, op);
+  }
+  // A queue made by a build that was newer once (a store written by this
+  // version, its user_version set back) has the column already.
+  if (now < 5 && db.QueryText("SELECT count(*) FROM pragma_table_info('job_queue') WHERE name = 'kind'",
+                              op) == "0") {
+    db.Exec(kSchemaVersion5, op);
   }
   if (now < kSchemaVersion) db.Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion), op);
   tx.Commit();

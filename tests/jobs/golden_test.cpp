@@ -17,6 +17,7 @@
 // goldens with scripts/update-golden.sh (CALIB_UPDATE_GOLDEN=1 makes this
 // test rewrite them instead of comparing) and commit them with the change.
 
+#include "support/loop_decisions.h"
 #include "support/process_support.h"
 #include "support/test_support.h"
 
@@ -233,44 +234,6 @@ TEST(GoldenTest, ExampleJobAtASmallBudget) {
   if (!HasFailure()) fs::remove_all(dir);
 }
 
-// The report's decisions and numbers (no texts, no times).
-json LoopDecisions(const json& report) {
-  json stages = json::array();
-  for (const json& s : report["stages"]) {
-    json errors = json::array();
-    for (const json& e : s["errors"]) {
-      errors.push_back({{"recording", e["recording"]},
-                        {"status", e["status"]},
-                        {"xor_sum", e["xor_sum"]},
-                        {"mean_iou", e["mean_iou"]}});
-    }
-    json stage = {{"name", s["name"]},
-                  {"effect_tried", s["effect_tried"]},
-                  {"decision", s["decision"]},
-                  {"effects", s["effects"]},
-                  {"parameters", s["parameters"]},
-                  {"errors", errors},
-                  {"criterion_value", s["criterion_value"]},
-                  {"evaluations", s["evaluations"]}};
-    for (const char* optional : {"equally_good", "holdout_sensitivity_px", "restart_training_xor"}) {
-      if (s.contains(optional)) stage[optional] = s[optional];
-    }
-    stages.push_back(std::move(stage));
-  }
-  json rounds = json::array();
-  for (const json& r : report["rounds"]) {
-    json hypotheses = json::array();
-    for (const json& h : r["hypotheses"]) {
-      hypotheses.push_back({{"effect", h["effect"]}, {"confidence", h["confidence"]}});
-    }
-    rounds.push_back({{"round", r["round"]}, {"stage", r["stage"]}, {"hypotheses", hypotheses}});
-  }
-  return {{"stages", stages},
-          {"rounds", rounds},
-          {"effects_kept", report["effects_kept"]},
-          {"final_model", report["final_model"]}};
-}
-
 TEST(GoldenTest, LoopOnPushCentreAtATinyBudget) {
   const fs::path dir = testing::ScratchDir("golden_loop");
   RunCalib({"loop", "--train", (kSource / "examples" / "push_centre").string(), "--holdout",
@@ -280,7 +243,7 @@ TEST(GoldenTest, LoopOnPushCentreAtATinyBudget) {
             "--overlays", "0", "--no-html", "--quiet", "--threads", std::to_string(Threads()), "--cache-dir",
             kCacheDir},
            dir);
-  const json decisions = LoopDecisions(ReadJson(dir / "loop" / "report.json"));
+  const json decisions = testing::LoopDecisions(ReadJson(dir / "loop" / "report.json"));
   // At least one effect tried, so that a decision is exercised.
   ASSERT_GE(decisions["stages"].size(), 2u) << decisions.dump(1);
   const json now = {{"loop", decisions}, {"store", StoredHistories(dir / "loop" / "store.sqlite")}};

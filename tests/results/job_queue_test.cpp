@@ -3,6 +3,7 @@
 
 #include "calib/results/job_queue.h"
 #include "calib/results/store.h"
+#include "support/sqlite_support.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -17,10 +18,10 @@ const nlohmann::json kQueuedSpec = {{"name", "x"}};
 TEST(JobQueue, HandsOutByPriorityThenSubmissionOrder) {
   const fs::path dir = testing::ScratchDir("queue_order");
   JobQueue queue(dir / "s.sqlite");
-  const int64_t a = queue.Add("a", kQueuedSpec, 0, false);
-  const int64_t b = queue.Add("b", kQueuedSpec, 5, false);
-  const int64_t c = queue.Add("c", kQueuedSpec, 0, true);
-  const int64_t d = queue.Add("d", kQueuedSpec, 5, false);
+  const int64_t a = queue.Add("a", QueueKind::kJob, kQueuedSpec, 0, false);
+  const int64_t b = queue.Add("b", QueueKind::kJob, kQueuedSpec, 5, false);
+  const int64_t c = queue.Add("c", QueueKind::kJob, kQueuedSpec, 0, true);
+  const int64_t d = queue.Add("d", QueueKind::kJob, kQueuedSpec, 5, false);
   std::vector<int64_t> order;
   while (const std::optional<QueueEntry> e = queue.ClaimNext()) {
     EXPECT_EQ(e->state, QueueState::kRunning);
@@ -35,9 +36,9 @@ TEST(JobQueue, HandsOutByPriorityThenSubmissionOrder) {
 TEST(JobQueue, ANameIsQueuedOnce) {
   const fs::path dir = testing::ScratchDir("queue_names");
   JobQueue queue(dir / "s.sqlite");
-  queue.Add("a", kQueuedSpec, 0, false);
+  queue.Add("a", QueueKind::kJob, kQueuedSpec, 0, false);
   try {
-    queue.Add("a", kQueuedSpec, 1, false);
+    queue.Add("a", QueueKind::kJob, kQueuedSpec, 1, false);
     ADD_FAILURE() << "a second entry of one name was queued";
   } catch (const StoreError& e) {
     EXPECT_NE(std::string(e.what()).find("queue job 'a': a job of that name is in the queue"),
@@ -51,9 +52,9 @@ TEST(JobQueue, OutlivesTheProcessAndRequeuesWhatWasRunning) {
   int64_t running = 0, done = 0, queued = 0;
   {
     JobQueue queue(dir / "s.sqlite");
-    running = queue.Add("running", kQueuedSpec, 9, false);
-    done = queue.Add("done", kQueuedSpec, 8, false);
-    queued = queue.Add("queued", {{"name", "queued"}, {"seed", 3}}, 0, false);
+    running = queue.Add("running", QueueKind::kJob, kQueuedSpec, 9, false);
+    done = queue.Add("done", QueueKind::kJob, kQueuedSpec, 8, false);
+    queued = queue.Add("queued", QueueKind::kJob, {{"name", "queued"}, {"seed", 3}}, 0, false);
     ASSERT_EQ(queue.ClaimNext()->id, running);
     ASSERT_EQ(queue.ClaimNext()->id, done);
     queue.Set(done, QueueState::kDone, "finished", false);
@@ -74,6 +75,38 @@ TEST(JobQueue, OutlivesTheProcessAndRequeuesWhatWasRunning) {
   EXPECT_EQ(ResultStore(dir / "s.sqlite").SchemaVersion(),
             ResultStore(dir / "fresh.sqlite").SchemaVersion())
       << "the queue lives in a results store of the current schema";
+}
+
+TEST(JobQueue, KeepsEachEntrysKindAndReadsAVersion4QueueAsJobs) {
+  const fs::path dir = testing::ScratchDir("queue_kinds");
+  {
+    JobQueue queue(dir / "s.sqlite");
+    queue.Add("loop", QueueKind::kLoop, kQueuedSpec, 0, false);
+    queue.Add("comparison", QueueKind::kComparison, kQueuedSpec, 0, false);
+    EXPECT_EQ(queue.Find("loop")->kind, QueueKind::kLoop);
+    EXPECT_EQ(queue.ClaimNext()->kind, QueueKind::kLoop);
+    EXPECT_EQ(queue.Find("comparison")->kind, QueueKind::kComparison);
+  }
+  for (const QueueKind kind : {QueueKind::kJob, QueueKind::kLoop, QueueKind::kComparison}) {
+    EXPECT_EQ(QueueKindFromString(ToString(kind)), kind);
+  }
+  try {
+    (void)QueueKindFromString("batch");
+    ADD_FAILURE() << "an unknown kind was read";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("batch"), std::string::npos) << e.what();
+  }
+  // What a version 4 build wrote: a queue without kinds, whose entries are
+  // jobs.
+  {
+    JobQueue queue(dir / "v4.sqlite");
+    queue.Add("old", QueueKind::kJob, kQueuedSpec, 0, false);
+  }
+  testing::RawSql(dir / "v4.sqlite",
+                  "ALTER TABLE job_queue DROP COLUMN kind; PRAGMA user_version=4;");
+  JobQueue queue(dir / "v4.sqlite");
+  EXPECT_EQ(queue.Find("old")->kind, QueueKind::kJob);
+  EXPECT_EQ(ResultStore(dir / "v4.sqlite").SchemaVersion(), ResultStore(dir / "fresh.sqlite").SchemaVersion());
 }
 
 }  // namespace

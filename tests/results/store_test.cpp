@@ -547,12 +547,12 @@ TEST(ResultStore, AVersion1StoreIsMigratedWhenOpenedForWriting) {
     EXPECT_TRUE(reader.JobInputs(job).empty());
   }
   ResultStore store(dir / "r.sqlite");
-  EXPECT_EQ(store.SchemaVersion(), 4);
+  EXPECT_EQ(store.SchemaVersion(), 5);
   const int64_t job = store.FindJob("job")->id;
   EXPECT_EQ(store.EvaluationCount(job), 1) << "nothing lost";
   EXPECT_FALSE(store.AcquireJobLock(job, Claim(1, "t"), [](const JobLock&, double) { return false; })
                    .has_value());
-  EXPECT_EQ(ResultStore(dir / "r.sqlite", read_only).SchemaVersion(), 4);
+  EXPECT_EQ(ResultStore(dir / "r.sqlite", read_only).SchemaVersion(), 5);
 }
 
 TEST(ResultStore, AVersion2StoreIsMigratedAndKeepsEverything) {
@@ -576,7 +576,7 @@ TEST(ResultStore, AVersion2StoreIsMigratedAndKeepsEverything) {
     EXPECT_TRUE(reader.JobRuns(reader.FindJob("job")->id).empty()) << "read as it is";
   }
   ResultStore store(dir / "r.sqlite");
-  EXPECT_EQ(store.SchemaVersion(), 4);
+  EXPECT_EQ(store.SchemaVersion(), 5);
   const int64_t job = store.FindJob("job")->id;
   EXPECT_EQ(store.EvaluationCount(job), 2) << "nothing lost";
   EXPECT_EQ(store.Best(job)->id, 1);
@@ -627,7 +627,7 @@ PRAGMA user_version=3;
     for (size_t i = 0; i < back.size(); ++i) ExpectSame(back[i], records[i]);
   }
   ResultStore store(dir / "r.sqlite");
-  EXPECT_EQ(store.SchemaVersion(), 4);
+  EXPECT_EQ(store.SchemaVersion(), 5);
   const int64_t job = store.FindJob("job")->id;
   const std::vector<EvaluationRecord> back = store.Evaluations(job);
   ASSERT_EQ(back.size(), 3u) << "nothing lost";

@@ -3,9 +3,11 @@
 // Strict cookie; a spec submitted through its form appears in the jobs
 // table; the job's convergence plot grows as evaluations come in, and its
 // best parameters show; a bad spec shows the server's message naming the
-// field. Exit 0 when all holds. Run by ctest (tests/CMakeLists.txt) with
+// field; an optimiser comparison submitted through the form shows its kind
+// in the table and, once done, its report embedded in the page. Exit 0 when
+// all holds. Run by ctest (tests/CMakeLists.txt) with
 // CALIB_EXE, CALIB_SOURCE_DIR and CALIB_CHROMIUM set; CALIB_SCREENSHOT_DIR,
-// when set, receives dashboard.png.
+// when set, receives dashboard.png and dashboard_comparison.png.
 "use strict";
 const { spawn } = require("child_process");
 const fs = require("fs");
@@ -35,10 +37,8 @@ async function waitFor(what, predicate, timeoutMs) {
   fail(`${what}: not after ${timeoutMs / 1000} s`);
 }
 
-const jobYaml = (name, budget) => `
-name: ${name}
-train: [push_centre]
-model: {substeps: 4, mesh: {edge_length_px: 40}}
+// The base model on a coarse mesh: what every spec here searches.
+const coarseModel = `model: {substeps: 4, mesh: {edge_length_px: 40}}
 parameters:
   - {name: k_D, lower: 10, upper: 5000, scale: log}
   - {name: k_d, lower: 0.01, upper: 50, scale: log}
@@ -46,9 +46,28 @@ parameters:
   - {name: k_phi, lower: 0.1, upper: 1000, scale: log}
   - {name: mass, fixed: 0.2}
   - {name: tau, lower: 0, upper: 0.5}
-optimizer: {name: cmaes, settings: {population: 4}}
+`;
+
+// The job's evaluations: enough for a few seconds of search, so that its
+// plot is seen growing between the page's refreshes (every second) on a
+// fast machine too.
+const kBudget = 96;
+
+const jobYaml = (name, budget) => `
+name: ${name}
+train: [push_centre]
+${coarseModel}optimizer: {name: cmaes, settings: {population: 4}}
 budget: {evaluations: ${budget}}
 seed: 3
+`;
+
+// The smallest comparison: two optimisers, one seed, 3 evaluations each.
+const comparisonYaml = (name) => `
+name: ${name}
+train: [push_centre]
+${coarseModel}budget: {evaluations: 3}
+optimizers: [{name: random}, {name: cmaes, settings: {population: 3}}]
+seeds: 1
 `;
 
 async function main() {
@@ -96,7 +115,7 @@ async function main() {
     await waitFor("the bad spec's message", async () =>
       (await page.$eval("#submit-result", (e) => e.textContent)).includes("budget.evaluations = '0'"), 10000);
 
-    await page.$eval("#spec", (e, v) => { e.value = v; }, jobYaml("from_dashboard", 48));
+    await page.$eval("#spec", (e, v) => { e.value = v; }, jobYaml("from_dashboard", kBudget));
     await page.click("#submit-form button");
     await page.waitForSelector('tr.job[data-name="from_dashboard"]', { timeout: 10000 });
     await page.click('tr.job[data-name="from_dashboard"]');
@@ -109,13 +128,33 @@ async function main() {
     await waitFor("the best parameters", async () =>
       (await page.$$("#parameters tr")).length === 6, 10000);
     await waitFor("the job finished in the table", async () =>
-      (await page.$eval('tr.job[data-name="from_dashboard"]', (e) => e.textContent)).includes("48/48"), 90000);
+      (await page.$eval('tr.job[data-name="from_dashboard"]', (e) => e.textContent)).includes(`${kBudget}/${kBudget}`), 90000);
     await waitFor("the job's detail at its end", async () =>
-      (await page.$eval("#detail-status", (e) => e.textContent)).includes("48/48"), 30000);
+      (await page.$eval("#detail-status", (e) => e.textContent)).includes(`${kBudget}/${kBudget}`), 30000);
     if (process.env.CALIB_SCREENSHOT_DIR) {
       await page.screenshot({ path: path.join(process.env.CALIB_SCREENSHOT_DIR, "dashboard.png"), fullPage: true });
     }
-    console.log(`dashboard: signed in, a bad spec named, a job submitted, its plot grew from ${first} to ${await points()} points`);
+    const grown = await points();
+
+    // A comparison: its kind in the table, its report embedded once done.
+    await page.select("#kind", "comparison");
+    await page.$eval("#spec", (e, v) => { e.value = v; }, comparisonYaml("compared_in_dashboard"));
+    await page.click("#submit-form button");
+    const row = 'tr.job[data-name="compared_in_dashboard"]';
+    await page.waitForSelector(row, { timeout: 10000 });
+    check((await page.$eval(`${row} td:nth-child(2)`, (e) => e.textContent)) === "comparison",
+          "the table does not show the comparison's kind");
+    await page.click(row);
+    await waitFor("the comparison's report embedded", async () => {
+      const frame = page.frames().find((f) => f.url().endsWith("/compared_in_dashboard/artefacts/report.html"));
+      return frame !== undefined && (await frame.content()).includes("compared_in_dashboard");
+    }, 90000);
+    check((await page.$eval("#report-link", (e) => e.textContent)).includes("comparison report: report.html"),
+          "no link to the comparison's report");
+    if (process.env.CALIB_SCREENSHOT_DIR) {
+      await page.screenshot({ path: path.join(process.env.CALIB_SCREENSHOT_DIR, "dashboard_comparison.png"), fullPage: true });
+    }
+    console.log(`dashboard: signed in, a bad spec named, a job submitted, its plot grew from ${first} to ${grown} points; a comparison's report embedded`);
   } finally {
     if (browser) await browser.close();
     server.kill("SIGTERM");

@@ -17,6 +17,7 @@
 #include "calib/results/job_queue.h"
 #include "calib/results/store.h"
 #include "jobs/job_test_support.h"
+#include "service/service_test_support.h"
 #include "support/process_support.h"
 #include "support/test_support.h"
 
@@ -31,19 +32,19 @@
 
 #include <chrono>
 #include <fstream>
+#include <set>
 #include <thread>
 
 namespace calib {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-#define EXPECT_CONTAINS(text, part) \
-  EXPECT_NE(std::string(text).find(part), std::string::npos) << "text: " << (text) << "\nmissing: " << (part)
-
-const std::string kCalib = CALIB_EXE;
-const fs::path kExamples = fs::path(CALIB_SOURCE_DIR) / "examples";
+using testing::Clock;
+using testing::History;
+using testing::kCalib;
+using testing::kExamples;
+using testing::Prefix;
+using testing::Server;
 
 // A job on examples/push_centre (an absolute path inside the data root, so
 // that the same text runs under `calib run` and the server alike).
@@ -51,116 +52,6 @@ std::string JobYaml(const std::string& name, int seed, int budget) {
   return testing::SmallPushJobYaml(name, (kExamples / "push_centre").string(), seed, budget,
                                    "results: {store: ignored.sqlite}");
 }
-
-std::vector<EvaluationRecord> History(const fs::path& db, const std::string& name) {
-  StoreOptions options;
-  options.read_only = true;
-  ResultStore store(db, options);
-  const std::optional<JobInfo> job = store.FindJob(name);
-  if (!job) return {};
-  return store.Evaluations(job->id);
-}
-
-std::vector<EvaluationRecord> Prefix(std::vector<EvaluationRecord> history, size_t n) {
-  history.resize(std::min(n, history.size()));
-  return history;
-}
-
-// `calib serve` in a child process, and an HTTP client with its token.
-class Server {
- public:
-  Server(const fs::path& state, const fs::path& logs, std::vector<std::string> extra = {})
-      : state_(state) {
-    fs::create_directories(logs);
-    fs::remove(state / "port");
-    std::vector<std::string> argv = {kCalib,        "serve",        "--port",
-                                     "0",           "--port-file",  (state / "port").string(),
-                                     "--state-dir", state.string(), "--data-root",
-                                     kExamples.string(), "--jobs", "2", "--threads-per-job", "1",
-                                     "--no-video"};
-    argv.insert(argv.end(), extra.begin(), extra.end());
-    process_ = std::make_unique<testing::ChildProcess>(argv, logs);
-    const auto deadline = Clock::now() + std::chrono::seconds(60);
-    while (!fs::exists(state / "port")) {
-      if (process_->Exited() || Clock::now() > deadline) {
-        ADD_FAILURE() << "the server did not start: " << process_->Wait(1).err;
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    std::ifstream(state / "port") >> port_;
-    std::ifstream(state / "token") >> token_;
-  }
-
-  int port() const { return port_; }
-  const std::string& token() const { return token_; }
-  std::string url() const { return fmt::format("http://127.0.0.1:{}", port_); }
-  testing::ChildProcess& process() { return *process_; }
-  fs::path store() const { return state_ / "service.sqlite"; }
-
-  httplib::Client Client(const std::string& token) const {
-    httplib::Client client("127.0.0.1", port_);
-    if (!token.empty()) client.set_bearer_token_auth(token.c_str());
-    client.set_read_timeout(60);
-    return client;
-  }
-  httplib::Client Client() const { return Client(token_); }
-
-  nlohmann::json Get(const std::string& path) const {
-    httplib::Client client = Client();
-    const httplib::Result r = client.Get(path.c_str());
-    if (!r) {
-      ADD_FAILURE() << "GET " << path << ": " << httplib::to_string(r.error());
-      return nullptr;
-    }
-    EXPECT_EQ(r->status, 200) << "GET " << path << ": " << r->body;
-    return nlohmann::json::parse(r->body, nullptr, false);
-  }
-
-  nlohmann::json Submit(const std::string& yaml, int priority = 0) const {
-    httplib::Client client = Client();
-    const nlohmann::json body = {{"spec", yaml}, {"priority", priority}};
-    const httplib::Result r = client.Post("/api/v1/jobs", body.dump(), "application/json");
-    if (!r) {
-      ADD_FAILURE() << "POST /api/v1/jobs: " << httplib::to_string(r.error());
-      return nullptr;
-    }
-    EXPECT_EQ(r->status, 201) << r->body;
-    return nlohmann::json::parse(r->body, nullptr, false);
-  }
-
-  // Waits until the job's queue state is done (or cancelled); its status.
-  nlohmann::json WaitDone(const std::string& name, double timeout_s = 120) const {
-    const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
-    while (Clock::now() < deadline) {
-      const nlohmann::json job = Get("/api/v1/jobs/" + name);
-      if (job.is_null() || job.is_discarded()) return job;
-      if (job["state"] == "done" || job["state"] == "cancelled") return job;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    ADD_FAILURE() << name << ": not done after " << timeout_s << " s";
-    return nullptr;
-  }
-
-  // Waits until the job has recorded at least `n` evaluations.
-  void WaitEvaluations(const std::string& name, size_t n) const {
-    const auto deadline = Clock::now() + std::chrono::seconds(120);
-    while (Clock::now() < deadline) {
-      try {
-        if (History(store(), name).size() >= n) return;
-      } catch (const StoreError&) {
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    ADD_FAILURE() << name << ": fewer than " << n << " evaluations after 120 s";
-  }
-
- private:
-  fs::path state_;
-  std::unique_ptr<testing::ChildProcess> process_;
-  int port_ = 0;
-  std::string token_;
-};
 
 // The reference histories, from `calib run` of the same specs: 16
 // evaluations at seeds 3 and 5, run when first asked for. CMA-ES proposes
@@ -205,12 +96,10 @@ TEST_F(Service, JobsSubmittedOverHttpAndThroughTheCliGiveTheHistoriesOfCalibRun)
 
   const fs::path spec = dir / "over_cli.yaml";
   std::ofstream(spec) << JobYaml("over_cli", 5, 8);
-  const testing::ProcessResult cli = testing::RunProcess(
-      {kCalib, "submit", spec.string(), "--server", server.url(), "--token-file",
-       (dir / "state" / "token").string(), "--priority", "3", "--wait"},
-      dir / "logs");
+  const testing::ProcessResult cli =
+      server.RunClient({"submit", spec.string(), "--priority", "3", "--wait"}, dir / "logs");
   EXPECT_EQ(cli.exit_code, 0) << cli.out << cli.err;
-  EXPECT_CONTAINS(cli.out, "submitted: over_cli (priority 3)");
+  EXPECT_CONTAINS(cli.out, "submitted: job over_cli (priority 3)");
   EXPECT_CONTAINS(cli.out, "status: finished");
   EXPECT_CONTAINS(cli.out, "evaluations: 8/8");
 
@@ -249,11 +138,7 @@ TEST_F(Service, JobsSubmittedOverHttpAndThroughTheCliGiveTheHistoriesOfCalibRun)
     EXPECT_CONTAINS(openapi->body, "/api/v1/jobs/{name}/budget:");
   }
 
-  const std::vector<std::string> client_args = {"--server", server.url(), "--token-file",
-                                                (dir / "state" / "token").string()};
-  std::vector<std::string> jobs = {kCalib, "jobs"};
-  jobs.insert(jobs.end(), client_args.begin(), client_args.end());
-  const testing::ProcessResult listed = testing::RunProcess(jobs, dir / "logs");
+  const testing::ProcessResult listed = server.RunClient({"jobs"}, dir / "logs");
   EXPECT_EQ(listed.exit_code, 0) << listed.err;
   EXPECT_CONTAINS(listed.out, "over_http");
   EXPECT_CONTAINS(listed.out, "over_cli");
@@ -262,9 +147,7 @@ TEST_F(Service, JobsSubmittedOverHttpAndThroughTheCliGiveTheHistoriesOfCalibRun)
       {kCalib, "jobs", "--store", server.store().string()}, dir / "logs");
   EXPECT_EQ(from_store.exit_code, 0) << from_store.err;
   EXPECT_CONTAINS(from_store.out, "over_cli");
-  std::vector<std::string> status = {kCalib, "status", "over_cli"};
-  status.insert(status.end(), client_args.begin(), client_args.end());
-  const testing::ProcessResult shown = testing::RunProcess(status, dir / "logs");
+  const testing::ProcessResult shown = server.RunClient({"status", "over_cli"}, dir / "logs");
   EXPECT_EQ(shown.exit_code, 0) << shown.err;
   EXPECT_CONTAINS(shown.out, "status: finished");
 
@@ -333,10 +216,7 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   constexpr int kBudget = 96;
   server.Submit(JobYaml("cancelled", 3, kBudget));
   server.WaitEvaluations("cancelled", 5);
-  const testing::ProcessResult cancel = testing::RunProcess(
-      {kCalib, "cancel", "cancelled", "--server", server.url(), "--token-file",
-       (dir / "state" / "token").string()},
-      dir / "logs");
+  const testing::ProcessResult cancel = server.RunClient({"cancel", "cancelled"}, dir / "logs");
   EXPECT_EQ(cancel.exit_code, 0) << cancel.err;
   EXPECT_CONTAINS(cancel.out, "state: cancelling");
   const nlohmann::json stopped = server.WaitDone("cancelled");
@@ -357,6 +237,81 @@ TEST_F(Service, ARunningJobCancelledThroughCalibCancelAndResumedEndsWithTheUnint
   ASSERT_TRUE(again);
   EXPECT_EQ(again->status, 200) << "a finished job may be queued again: nothing to do";
   EXPECT_EQ(server.WaitDone("cancelled")["evaluations"], kBudget);
+}
+
+// --mpi-hosts: a job run by scripts/calib-mpirun.sh on three MPI ranks of
+// this machine (the manager and two workers), cancelled and resumed, then
+// its server killed with SIGKILL and restarted, ends with the history of
+// `calib run` on threads.
+TEST_F(Service, AJobOnMpiHostsCancelledResumedAndKilledEndsWithTheHistoryOfCalibRun) {
+  const std::string mpiexec = CALIB_MPIEXEC;
+  if (mpiexec.empty()) GTEST_SKIP() << "no MPI launcher in this build";
+  ::setenv("MPIRUN", mpiexec.c_str(), 1);
+  const fs::path dir = testing::ScratchDir("service_mpi");
+  const std::vector<std::string> mpi = {
+      "--no-report", "--mpi-hosts", "localhost:3", "--mpi-launcher",
+      (fs::path(CALIB_SOURCE_DIR) / "scripts" / "calib-mpirun.sh").string(), "--mpirun-args",
+      "--allow-run-as-root --oversubscribe --bind-to none --mca btl self,vader "
+      "--mca btl_vader_single_copy_mechanism none"};
+  const fs::path log = dir / "state" / "mpi" / "on_mpi.log";
+  fs::create_directories(dir / "logs");
+  for (const char* bad : {"localhost:1", "localhost:0,b:2", "a:2,,b", ":3"}) {
+    const testing::ProcessResult refused = testing::RunProcess(
+        {kCalib, "serve", "--data-root", kExamples.string(), "--state-dir", (dir / "bad").string(),
+         "--port", "0", "--mpi-hosts", bad, "--mpi-launcher", "/bin/true"},
+        dir / "logs");
+    EXPECT_EQ(refused.exit_code, 2) << bad << ": " << refused.err;
+    EXPECT_CONTAINS(refused.err, fmt::format("ServiceOptions::mpi_hosts = '{}'", bad));
+  }
+  // A budget the ranks need seconds for (they evaluate about 50 a second
+  // here), so that the cancel and the kill land while it runs.
+  constexpr int kBudget = 160;
+  {
+    Server server(dir / "state", dir / "logs", mpi);
+    ASSERT_GT(server.port(), 0);
+    server.Submit(JobYaml("on_mpi", 3, kBudget));
+    // Cancelled: SIGTERM to the launcher, the manager stops at a checkpoint.
+    server.WaitEvaluations("on_mpi", 5);
+    EXPECT_CONTAINS(server.RunClient({"cancel", "on_mpi"}, dir / "logs").out, "state: cancelling");
+    const nlohmann::json cancelled = server.WaitDone("on_mpi");
+    EXPECT_EQ(cancelled["state"], "cancelled") << cancelled.dump(1);
+    EXPECT_EQ(cancelled["status"], "stopped") << testing::ReadText(log);
+    const int before = cancelled["evaluations"].get<int>();
+    EXPECT_LT(before, kBudget) << "stopped before its end";
+    // Resumed (the launcher's calib resume), then the server killed: the
+    // kernel sends the launcher SIGTERM.
+    httplib::Client client = server.Client();
+    const httplib::Result resumed = client.Post("/api/v1/jobs/on_mpi/resume", "", "application/json");
+    ASSERT_TRUE(resumed);
+    EXPECT_EQ(resumed->status, 200) << resumed->body;
+    server.WaitEvaluations("on_mpi", before + 5);
+    server.process().Kill(SIGKILL);
+    server.process().Wait(30);
+  }
+  // The launcher heard of its server's death (it may still have let the
+  // manager finish the job meanwhile).
+  auto interruptions = [&log] {
+    const std::string text = testing::ReadText(log);
+    size_t n = 0;
+    for (size_t at = text.find("calib-mpirun: interrupted"); at != std::string::npos;
+         at = text.find("calib-mpirun: interrupted", at + 1)) {
+      ++n;
+    }
+    return n;
+  };
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  while (interruptions() < 2 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(interruptions(), 2u) << "the cancel and the server's death: " << testing::ReadText(log);
+  Server server(dir / "state", dir / "logs2", mpi);
+  ASSERT_GT(server.port(), 0);
+  const nlohmann::json done = server.WaitDone("on_mpi");
+  EXPECT_EQ(done["status"], "finished") << done.dump(1) << testing::ReadText(log);
+  const std::vector<EvaluationRecord> history = History(server.store(), "on_mpi");
+  testing::ExpectSameHistory(Reference(3, kBudget, kBudget), history,
+                             "on three MPI ranks, cancelled, resumed and killed");
+  std::set<std::string> workers;
+  for (const EvaluationRecord& e : history) workers.insert(e.worker);
+  EXPECT_EQ(workers, (std::set<std::string>{"rank 1", "rank 2"})) << "evaluated by the worker ranks";
 }
 
 TEST_F(Service, AReportIsDeletedPastItsAgeLimitAndTheResultsStay) {

@@ -38,6 +38,17 @@ void RequireInsideDataRoots(const fs::path& path, const std::vector<fs::path>& r
                   field, path.string(), listed, roots.empty() ? "-" : roots.front().string()));
 }
 
+void RequireRecordingsInsideDataRoots(const std::vector<fs::path>& train,
+                                      const std::vector<fs::path>& holdout,
+                                      const std::vector<fs::path>& roots) {
+  for (size_t i = 0; i < train.size(); ++i) {
+    RequireInsideDataRoots(train[i], roots, fmt::format("train[{}]", i));
+  }
+  for (size_t i = 0; i < holdout.size(); ++i) {
+    RequireInsideDataRoots(holdout[i], roots, fmt::format("holdout[{}]", i));
+  }
+}
+
 fs::path PathInside(const fs::path& folder, const std::string& relative, const std::string& field) {
   const fs::path rel(relative);
   if (relative.empty() || rel.is_absolute()) {

@@ -84,6 +84,7 @@ std::string ContentType(const std::filesystem::path& path) {
   if (ext == ".csv") return "text/csv";
   if (ext == ".txt") return "text/plain; charset=utf-8";
   if (ext == ".png") return "image/png";
+  if (ext == ".svg") return "image/svg+xml";
   if (ext == ".mp4") return "video/mp4";
   if (ext == ".html") return "text/html; charset=utf-8";
   return "application/octet-stream";
@@ -221,6 +222,14 @@ struct HttpApi::Impl {
     server.Get(job + "/artefacts/(.+)",
                Guarded([this](const httplib::Request& req, httplib::Response& res) {
                  const std::filesystem::path file = service.Artefact(req.matches[1], req.matches[2]);
+                 if (file.extension() == ".html") {
+                   // A report page (a job's, a loop's, a comparison's) is
+                   // shown in the dashboard: its own images and styles, no
+                   // script, framed only by the dashboard.
+                   res.set_header("Content-Security-Policy",
+                                  "default-src 'none'; img-src 'self' data:; style-src 'unsafe-inline'; "
+                                  "frame-ancestors 'self'");
+                 }
                  res.set_content(ReadFile(file), ContentType(file).c_str());
                }));
   }

@@ -5,10 +5,12 @@
 #include "calib/service/data_roots.h"
 #include "calib/service/job_views.h"
 #include "calib/service/service_error.h"
+#include "queued_work.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 
 namespace calib::service {
@@ -16,21 +18,31 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kSpecSource = "submitted spec";
-
-// The spec the server runs: results in its store, the report in its folder.
-void PlaceResults(const ServiceOptions& options, JobSpec* spec) {
-  spec->results.store = fs::absolute(options.store());
-  spec->results.out_dir = fs::absolute(options.reports() / spec->name);
-  spec->results.earlier_default_store.clear();
+// A results store's files (a loop's or a comparison's, in its folder): their
+// content is served as results, not as files.
+bool IsStoreFile(const fs::path& path) {
+  const std::string name = path.filename().string();
+  for (const char* suffix : {".sqlite", ".sqlite-wal", ".sqlite-shm", ".sqlite-journal"}) {
+    const std::string s(suffix);
+    if (name.size() >= s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0) return true;
+  }
+  return false;
 }
 
-JobSpecParseOptions ParseOptions(const ServiceOptions& options, RecordingCheck recordings) {
-  JobSpecParseOptions parse;
-  parse.recordings = recordings;
-  parse.results_root = options.reports();
-  return parse;
+// "a:2,b" -> {"a:2", "b"} (empty items kept, to be refused).
+std::vector<std::string> SplitHosts(const std::string& list) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (true) {
+    const size_t comma = list.find(',', start);
+    out.push_back(list.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) return out;
+    start = comma + 1;
+  }
 }
+
+// Request fields of a submission.
+constexpr const char* kSubmitFields = "kind, spec, priority";
 
 }  // namespace
 
@@ -53,6 +65,34 @@ bool ServiceOptions::IsValid(std::string* error) const {
   if (!(report_max_age_s >= 0.0)) {
     *error = fmt::format("ServiceOptions::report_max_age_s = {}. Violated: >= 0 (0: kept)",
                          report_max_age_s);
+    return false;
+  }
+  if (!mpi_hosts.empty()) {
+    // HOST[:SLOTS],... with at least two slots: the manager and a worker.
+    int slots = 0;
+    for (const std::string& host : SplitHosts(mpi_hosts)) {
+      const size_t colon = host.find(':');
+      const std::string count = colon == std::string::npos ? "1" : host.substr(colon + 1);
+      const bool digits = !count.empty() && count.size() < 6 &&
+                          std::all_of(count.begin(), count.end(), [](char c) { return c >= '0' && c <= '9'; });
+      if (host.substr(0, colon).empty() || !digits || std::stoi(count) < 1) {
+        *error = fmt::format("ServiceOptions::mpi_hosts = '{}': '{}' is not HOST or HOST:SLOTS (SLOTS >= 1)",
+                             mpi_hosts, host);
+        return false;
+      }
+      slots += std::stoi(count);
+    }
+    if (slots < 2) {
+      *error = fmt::format("ServiceOptions::mpi_hosts = '{}': {} slot(s). Violated: >= 2 (the manager "
+                           "and a worker rank)",
+                           mpi_hosts, slots);
+      return false;
+    }
+  }
+  if (!mpi_hosts.empty() && (mpi_launcher.empty() || calib_executable.empty())) {
+    *error = fmt::format("ServiceOptions::mpi_hosts = '{}' needs mpi_launcher (--mpi-launcher, "
+                         "scripts/calib-mpirun.sh) and calib_executable",
+                         mpi_hosts);
     return false;
   }
   if (threads_per_job < 0) {
@@ -93,13 +133,6 @@ void JobService::Stop() {
   }
 }
 
-JobSpec JobService::SpecOf(const nlohmann::json& canonical) const {
-  JobSpec spec = ParseJobSpec(canonical, kSpecSource, options_.data_roots.front(),
-                              ParseOptions(options_, RecordingCheck::kExists));
-  PlaceResults(options_, &spec);
-  return spec;
-}
-
 QueueEntry JobService::Entry(const std::string& name) const {
   std::optional<QueueEntry> entry = queue_.Find(name);
   if (!entry) throw ServiceError(404, "name", fmt::format("no job '{}' on this server", name));
@@ -108,17 +141,31 @@ QueueEntry JobService::Entry(const std::string& name) const {
 
 nlohmann::json JobService::Submit(const nlohmann::json& request) {
   if (!request.is_object()) {
-    throw ServiceError(400, "", "the body must be a JSON object: {\"spec\": ..., \"priority\": N}");
+    throw ServiceError(400, "", "the body must be a JSON object: {\"kind\": ..., \"spec\": ..., \"priority\": N}");
   }
   for (const auto& [key, value] : request.items()) {
-    if (key != "spec" && key != "priority") {
-      throw ServiceError(400, key, fmt::format("{}: unknown field (known: spec, priority)", key));
+    if (key != "kind" && key != "spec" && key != "priority") {
+      throw ServiceError(400, key, fmt::format("{}: unknown field (known: {})", key, kSubmitFields));
     }
   }
-  if (!request.contains("spec")) throw ServiceError(400, "spec", "spec: missing (a job spec)");
+  QueueKind kind = QueueKind::kJob;
+  if (request.contains("kind")) {
+    const nlohmann::json& given = request["kind"];
+    try {
+      kind = QueueKindFromString(given.is_string() ? given.get<std::string>() : given.dump());
+    } catch (const std::invalid_argument&) {
+      throw ServiceError(400, "kind", fmt::format("kind = {}: must be \"job\", \"loop\" or "
+                                                  "\"comparison\"",
+                                                  given.dump()));
+    }
+  }
+  if (!request.contains("spec")) {
+    throw ServiceError(400, "spec", fmt::format("spec: missing (a {} spec)", ToString(kind)));
+  }
   const nlohmann::json& given = request["spec"];
   if (!given.is_object() && !given.is_string()) {
-    throw ServiceError(400, "spec", "spec: must be a job spec as a JSON object or as YAML text");
+    throw ServiceError(400, "spec", fmt::format("spec: must be a {} spec as a JSON object or as YAML text",
+                                                ToString(kind)));
   }
   int64_t priority = 0;
   if (request.contains("priority")) {
@@ -129,71 +176,39 @@ nlohmann::json JobService::Submit(const nlohmann::json& request) {
     priority = request["priority"].get<int64_t>();
   }
   const std::string text = given.is_string() ? given.get<std::string>() : given.dump();
-
-  // Where the recordings are is checked before whether they exist: nothing
-  // outside the data roots is looked at.
-  JobSpec spec;
-  try {
-    spec = ParseJobSpec(text, kSpecSource, options_.data_roots.front(),
-                        ParseOptions(options_, RecordingCheck::kNone));
-    for (size_t i = 0; i < spec.train.size(); ++i) {
-      RequireInsideDataRoots(spec.train[i], options_.data_roots, fmt::format("train[{}]", i));
-    }
-    for (size_t i = 0; i < spec.holdout.size(); ++i) {
-      RequireInsideDataRoots(spec.holdout[i], options_.data_roots, fmt::format("holdout[{}]", i));
-    }
-    spec = ParseJobSpec(text, kSpecSource, options_.data_roots.front(),
-                        ParseOptions(options_, RecordingCheck::kExists));
-    CheckRecordings(spec);
-  } catch (const JobSpecError& e) {
-    throw ServiceError(400, "spec", e.what());
-  }
-  // An external optimiser runs the program its settings name: a client of
-  // the service would run any program on the server, which reads no more
-  // than its data roots.
-  if (spec.optimizer.name == "external") {
-    throw ServiceError(403, "spec",
-                       fmt::format("{}: optimizer.name = 'external': runs a program on the server, "
-                                   "which the service does not do (run it with calib run)",
-                                   kSpecSource));
-  }
-  nlohmann::json notices = nlohmann::json::array();
-  const fs::path default_store = fs::absolute(options_.reports() / (spec.name + ".sqlite")).lexically_normal();
-  const fs::path default_out = fs::absolute(options_.reports() / spec.name).lexically_normal();
-  if (spec.results.store != default_store || spec.results.out_dir != default_out) {
-    notices.push_back(fmt::format(
-        "results.store and results.out_dir of a submitted spec are ignored: the server keeps "
-        "the job in its store {} and its report in {}",
-        options_.store().string(), (options_.reports() / spec.name).string()));
-  }
-  PlaceResults(options_, &spec);
+  const ValidatedWork work = ValidateSubmitted(kind, text, options_);
   {
     StoreOptions read_only;
     read_only.read_only = true;
-    if (queue_.Find(spec.name) || ResultStore(options_.store(), read_only).FindJob(spec.name)) {
+    if (queue_.Find(work.name) || ResultStore(options_.store(), read_only).FindJob(work.name)) {
       throw ServiceError(409, "spec",
                          fmt::format("{}: name = '{}': a job of that name is on this server "
-                                     "(delete it first, or give another name)",
-                                     kSpecSource, spec.name));
+                                     "(jobs, loops and comparisons share names; delete it first, "
+                                     "or give another name)",
+                                     SubmittedSource(kind), work.name));
     }
   }
   try {
-    queue_.Add(spec.name, ToJson(spec), priority, false);
+    queue_.Add(work.name, kind, work.queued_spec, priority, false);
   } catch (const StoreError& e) {  // submitted at the same moment by another request
     throw ServiceError(409, "spec", e.what());
   }
   wake_.notify_all();
-  return {{"name", spec.name}, {"state", "queued"}, {"priority", priority}, {"notices", notices}};
+  return {{"name", work.name},
+          {"kind", ToString(kind)},
+          {"state", "queued"},
+          {"priority", priority},
+          {"notices", work.notices}};
 }
 
 nlohmann::json JobService::List() const {
   nlohmann::json jobs = nlohmann::json::array();
-  for (const QueueEntry& entry : queue_.Entries()) jobs.push_back(JobStatusView(options_.store(), entry));
+  for (const QueueEntry& entry : queue_.Entries()) jobs.push_back(JobStatusView(options_, entry));
   return {{"jobs", jobs}};
 }
 
 nlohmann::json JobService::Status(const std::string& name) const {
-  return JobStatusView(options_.store(), Entry(name));
+  return JobStatusView(options_, Entry(name));
 }
 
 nlohmann::json JobService::Cancel(const std::string& name) {
@@ -230,12 +245,17 @@ nlohmann::json JobService::ExtendBudget(const std::string& name, const nlohmann:
     throw ServiceError(400, "evaluations", "evaluations: missing or not an integer (the new budget)");
   }
   const int64_t evaluations = request["evaluations"].get<int64_t>();
+  if (entry.kind != QueueKind::kJob) {
+    throw ServiceError(409, "name", fmt::format("{} '{}': budgets extend for jobs only (submit the "
+                                                "{} again under another name with larger budgets)",
+                                                ToString(entry.kind), name, ToString(entry.kind)));
+  }
   if (entry.state == QueueState::kQueued || entry.state == QueueState::kRunning) {
     throw ServiceError(409, "name", fmt::format("job '{}' is {}: extend its budget once it has "
                                                 "stopped (cancel it first)",
                                                 name, ToString(entry.state)));
   }
-  JobSpec spec = SpecOf(entry.spec);
+  JobSpec spec = ServiceJobSpec(entry.spec, options_);
   if (evaluations <= spec.budget.evaluations) {
     throw ServiceError(400, "evaluations",
                        fmt::format("evaluations = {}: must be > the job's budget ({})", evaluations,
@@ -254,7 +274,7 @@ nlohmann::json JobService::ExtendBudget(const std::string& name, const nlohmann:
     canonical["optimizer"]["settings"][key] = evaluations;  // the optimiser's own budget follows
   }
   canonical["budget"]["evaluations"] = evaluations;
-  (void)SpecOf(canonical);
+  (void)ServiceJobSpec(canonical, options_);
   queue_.SetSpec(entry.id, canonical);
   queue_.Set(entry.id, QueueState::kQueued, "", true);
   wake_.notify_all();
@@ -267,19 +287,26 @@ nlohmann::json JobService::Delete(const std::string& name) {
     throw ServiceError(409, "name", fmt::format("job '{}' is running: cancel it first", name));
   }
   queue_.Remove(entry.id);
-  ResultStore store(options_.store());
-  if (const std::optional<JobInfo> job = store.FindJob(name)) store.DeleteJob(job->id);
+  if (entry.kind == QueueKind::kJob) {
+    ResultStore store(options_.store());
+    if (const std::optional<JobInfo> job = store.FindJob(name)) store.DeleteJob(job->id);
+  }
   std::error_code ec;
-  fs::remove_all(options_.reports() / name, ec);
+  fs::remove_all(WorkFolder(options_, name), ec);  // a loop's or a comparison's store with it
   return {{"name", name}, {"deleted", true}};
 }
 
 nlohmann::json JobService::Results(const std::string& name) const {
-  return JobResultsView(options_.store(), Entry(name));
+  return JobResultsView(options_, Entry(name));
 }
 
 nlohmann::json JobService::Best(const std::string& name) const {
-  (void)Entry(name);
+  const QueueEntry entry = Entry(name);
+  if (entry.kind != QueueKind::kJob) {
+    throw ServiceError(409, "name", fmt::format("{} '{}' has no one best evaluation: its report "
+                                                "({}/artefacts) says what it found",
+                                                ToString(entry.kind), name, name));
+  }
   std::optional<nlohmann::json> best = BestView(options_.store(), name);
   if (!best) throw ServiceError(404, "name", fmt::format("job '{}' has no successful evaluation yet", name));
   return *best;
@@ -288,11 +315,11 @@ nlohmann::json JobService::Best(const std::string& name) const {
 nlohmann::json JobService::Artefacts(const std::string& name) const {
   (void)Entry(name);
   nlohmann::json files = nlohmann::json::array();
-  const fs::path folder = options_.reports() / name;
+  const fs::path folder = WorkFolder(options_, name);
   std::error_code ec;
   if (fs::is_directory(folder, ec)) {
     for (const auto& item : fs::recursive_directory_iterator(folder, ec)) {
-      if (!item.is_regular_file()) continue;
+      if (!item.is_regular_file() || IsStoreFile(item.path())) continue;
       files.push_back({{"path", item.path().lexically_relative(folder).generic_string()},
                        {"bytes", item.file_size()}});
     }
@@ -304,9 +331,9 @@ nlohmann::json JobService::Artefacts(const std::string& name) const {
 
 fs::path JobService::Artefact(const std::string& name, const std::string& relative) const {
   (void)Entry(name);
-  const fs::path path = PathInside(options_.reports() / name, relative, "path");
+  const fs::path path = PathInside(WorkFolder(options_, name), relative, "path");
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) {
+  if (!fs::is_regular_file(path, ec) || IsStoreFile(path)) {
     throw ServiceError(404, "path", fmt::format("path = '{}': job '{}' has no such file", relative, name));
   }
   return path;
@@ -320,8 +347,10 @@ void JobService::PruneReports() {
   read_only.read_only = true;
   const ResultStore store(options_.store(), read_only);
   for (const QueueEntry& entry : queue_.Entries()) {
+    // A loop's or a comparison's folder holds its results: kept until deleted.
+    if (entry.kind != QueueKind::kJob) continue;
     if (entry.state != QueueState::kDone && entry.state != QueueState::kCancelled) continue;
-    const fs::path folder = options_.reports() / entry.name;
+    const fs::path folder = WorkFolder(options_, entry.name);
     std::error_code ec;
     if (!fs::exists(folder, ec)) continue;
     const std::optional<JobInfo> job = store.FindJob(entry.name);
@@ -367,28 +396,10 @@ void JobService::RunEntry(const QueueEntry& entry) {
   QueueState state = QueueState::kDone;
   std::string message;
   try {
-    const JobSpec spec = SpecOf(entry.spec);
-    JobCommandOptions run;
-    run.threads = options_.threads_per_job;
-    run.write_report = options_.write_report;
-    run.report_video = options_.report_video;
-    run.progress = ProgressMode::kNone;
-    run.handle_signals = false;
-    run.interrupted = [this, cancel] { return stopping_.load() || cancel->load(); };
-    run.program_version = options_.program_version;
-    run.command = "serve";
-    bool exists = false;
-    {
-      ResultStore store(options_.store());
-      exists = store.FindJob(spec.name).has_value();
-    }
-    // A job already in the store continues (after a restart, a cancel, an
-    // extended budget); RunJob starts afresh one that recorded nothing yet.
-    const JobCommandResult result = RunJob(spec, exists ? JobStart::kResume : JobStart::kRun, run);
-    message = result.run.status == JobStatus::kCreated
-                  ? result.run.stop_reason
-                  : fmt::format("{}: {}", ToString(result.run.status), result.run.stop_reason);
-    if (result.run.status == JobStatus::kStopped) {
+    const WorkOutcome outcome =
+        RunQueued(entry, options_, [this, cancel] { return stopping_.load() || cancel->load(); });
+    message = outcome.message;
+    if (outcome.stopped) {
       if (cancel->load()) {
         state = QueueState::kCancelled;
         message = "cancelled by a request; resume it to continue";
@@ -399,7 +410,7 @@ void JobService::RunEntry(const QueueEntry& entry) {
     }
   } catch (const std::exception& e) {
     message = e.what();
-    spdlog::error("job '{}': {}", entry.name, e.what());
+    spdlog::error("{} '{}': {}", ToString(entry.kind), entry.name, e.what());
   }
   try {
     queue_.Set(entry.id, state, message, true);

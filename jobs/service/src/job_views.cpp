@@ -2,6 +2,9 @@
 
 #include "calib/evaluator/json_number.h"
 #include "calib/results/store.h"
+#include "queued_work.h"
+
+#include <fstream>
 
 namespace calib::service {
 namespace {
@@ -24,10 +27,75 @@ int64_t BudgetOf(const nlohmann::json& spec) {
   return budget.is_object() ? budget.value("evaluations", int64_t{0}) : 0;
 }
 
+// The report a loop or a comparison writes at its end, relative to its
+// folder.
+const char* ReportOf(QueueKind kind) { return kind == QueueKind::kLoop ? "report.json" : "report.html"; }
+
+bool IsFile(const fs::path& path) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec);
+}
+
+// A loop's or a comparison's own store, once it has one: nullopt before its
+// command made it (absent, or being created at this moment).
+std::optional<ResultStore> OpenOwnStore(const fs::path& path) {
+  if (!IsFile(path)) return std::nullopt;
+  try {
+    return OpenReadOnly(path);
+  } catch (const StoreError&) {
+    return std::nullopt;
+  }
+}
+
+// A loop's or a comparison's status and progress, from its own store.
+void AddOwnStoreView(const ServiceOptions& options, const QueueEntry& entry, nlohmann::json* view) {
+  nlohmann::json& v = *view;
+  v["budget"] = entry.kind == QueueKind::kComparison ? entry.spec.value("budget", int64_t{0}) : 0;
+  nlohmann::json progress = {{"jobs", 0}, {"jobs_finished", 0}};
+  if (entry.kind == QueueKind::kComparison) progress["runs"] = entry.spec.value("runs", int64_t{0});
+  const std::optional<ResultStore> own = OpenOwnStore(OwnStore(options, entry));
+  const bool started = own.has_value();
+  if (started) {
+    const ResultStore& store = *own;
+    int64_t evaluations = 0, failed = 0, pruned = 0, finished = 0;
+    const std::vector<JobInfo> jobs = store.Jobs();
+    for (const JobInfo& job : jobs) {
+      const JobSummary summary = store.Summary(job.id);
+      evaluations += summary.evaluations;
+      failed += summary.failed;
+      pruned += summary.pruned;
+      if (job.status == JobStatus::kFinished || job.status == JobStatus::kAborted) ++finished;
+    }
+    v["evaluations"] = evaluations;
+    v["failed"] = failed;
+    v["pruned"] = pruned;
+    progress["jobs"] = jobs.size();
+    progress["jobs_finished"] = finished;
+  }
+  v["progress"] = progress;
+  const bool reported = IsFile(WorkFolder(options, entry.name) / ReportOf(entry.kind));
+  v["report"] = reported ? nlohmann::json(ReportOf(entry.kind)) : nlohmann::json(nullptr);
+  switch (entry.state) {
+    case QueueState::kRunning:
+      v["status"] = "running";
+      break;
+    case QueueState::kQueued:
+      v["status"] = started ? "stopped" : "queued";
+      break;
+    case QueueState::kCancelled:
+      v["status"] = "stopped";
+      break;
+    case QueueState::kDone:
+      v["status"] = reported ? "finished" : "failed";
+      break;
+  }
+}
+
 }  // namespace
 
-nlohmann::json JobStatusView(const fs::path& store_path, const QueueEntry& entry) {
+nlohmann::json JobStatusView(const ServiceOptions& options, const QueueEntry& entry) {
   nlohmann::json view = {{"name", entry.name},
+                         {"kind", ToString(entry.kind)},
                          {"state", ToString(entry.state)},
                          {"priority", entry.priority},
                          {"submitted_unix_s", entry.submitted_unix_s},
@@ -40,7 +108,11 @@ nlohmann::json JobStatusView(const fs::path& store_path, const QueueEntry& entry
                          {"budget", BudgetOf(entry.spec)},
                          {"best", nullptr},
                          {"runs", nlohmann::json::array()}};
-  const ResultStore store = OpenReadOnly(store_path);
+  if (entry.kind != QueueKind::kJob) {
+    AddOwnStoreView(options, entry, &view);
+    return view;
+  }
+  const ResultStore store = OpenReadOnly(options.store());
   const std::optional<JobInfo> job = store.FindJob(entry.name);
   if (!job) return view;
   const JobSummary summary = store.Summary(job->id);
@@ -59,10 +131,32 @@ nlohmann::json JobStatusView(const fs::path& store_path, const QueueEntry& entry
   return view;
 }
 
-nlohmann::json JobResultsView(const fs::path& store_path, const QueueEntry& entry) {
-  nlohmann::json view = {{"job", JobStatusView(store_path, entry)},
+nlohmann::json JobResultsView(const ServiceOptions& options, const QueueEntry& entry) {
+  if (entry.kind != QueueKind::kJob) {
+    nlohmann::json view = {{"job", JobStatusView(options, entry)},
+                           {"jobs", nlohmann::json::array()},
+                           {"report", nullptr}};
+    if (const std::optional<ResultStore> store = OpenOwnStore(OwnStore(options, entry))) {
+      for (const JobInfo& job : store->Jobs()) {
+        const JobSummary summary = store->Summary(job.id);
+        view["jobs"].push_back({{"name", job.name},
+                                {"status", ToString(job.status)},
+                                {"evaluations", summary.evaluations},
+                                {"failed", summary.failed},
+                                {"best", BestOf(summary.best)}});
+      }
+    }
+    const fs::path report = WorkFolder(options, entry.name) / "report.json";
+    if (entry.kind == QueueKind::kLoop && IsFile(report)) {
+      std::ifstream in(report);
+      nlohmann::json parsed = nlohmann::json::parse(in, nullptr, false);
+      if (!parsed.is_discarded()) view["report"] = std::move(parsed);
+    }
+    return view;
+  }
+  nlohmann::json view = {{"job", JobStatusView(options, entry)},
                          {"evaluations", nlohmann::json::array()}};
-  const ResultStore store = OpenReadOnly(store_path);
+  const ResultStore store = OpenReadOnly(options.store());
   const std::optional<JobInfo> job = store.FindJob(entry.name);
   if (!job) return view;
   const JobSummary summary = store.Summary(job->id);

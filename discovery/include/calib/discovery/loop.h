@@ -35,6 +35,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -110,6 +111,11 @@ struct LoopOptions {
   /// the same for any evaluator (batch_evaluator.h).
   std::function<std::unique_ptr<BatchEvaluator>(const Objective& objective, int threads)>
       make_evaluator;
+  /// Polled between the candidates of every calibration; true stops the
+  /// loop resumably: the calibration stops at a checkpoint and RunLoop
+  /// throws LoopStopped (`resume` then continues it, as after a kill).
+  /// Null: never (`calib loop` stops on a signal by dying).
+  std::function<bool()> interrupted;
 
   /// False with a message naming the option and the rule.
   bool IsValid(std::string* error) const;
@@ -128,7 +134,14 @@ struct LoopResult {
   std::string table;
 };
 
-/// Runs the loop. Throws for bad options (std::invalid_argument naming the
+/// Thrown by RunLoop when LoopOptions::interrupted stopped it; the store
+/// keeps every calibration's evaluations and checkpoints.
+class LoopStopped : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Runs the loop. Throws LoopStopped when interrupted, and for bad options (std::invalid_argument naming the
 /// option), unreadable recordings (RecordingError / JobSpecError naming
 /// them) and store errors.
 LoopResult RunLoop(const LoopOptions& options, const LoopLog& log = {});

@@ -17,6 +17,7 @@
 #include "calib/results/comparison_report.h"
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -36,6 +37,11 @@ struct ComparisonOptions {
   /// analytic objectives.
   ObjectiveFactory make_objective;
   ComparisonReportOptions report;
+  /// As JobCommandOptions': whether the runs stop on SIGINT / SIGTERM /
+  /// SIGHUP (handlers installed while each runs), and a poll that stops the
+  /// run in progress resumably (ComparisonResult::stopped) when true.
+  bool handle_signals = true;
+  std::function<bool()> interrupted;
   /// Recorded with each run of a job (JobCommandOptions::program_version),
   /// the command as "compare-optimizers".
   std::string program_version = "calib";

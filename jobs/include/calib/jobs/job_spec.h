@@ -155,6 +155,9 @@ JobSpec ParseJobSpecYaml(const YAML::Node& root, const std::string& source,
 /// JobSpecError naming the field (`holdout[0]`) and the recording's message.
 /// The runner calls it before any work; ParseJobSpec only checks existence.
 void CheckRecordings(const JobSpec& spec);
+/// The same for recordings of another spec (a loop's), `source` naming it.
+void CheckRecordings(const std::string& source, const std::vector<std::filesystem::path>& train,
+                     const std::vector<std::filesystem::path>& holdout);
 
 /// The canonical JSON of a spec: every field, defaults filled in, keys
 /// sorted, paths relative to base_dir, doubles round-trip exact. Equal specs

@@ -3,8 +3,11 @@
 // schema version 3) so that it outlives the server: a job submitted and not
 // finished when the server is killed is found again when it restarts.
 //
-// An entry is a job by name (unique in the queue, as in the store) with its
-// canonical spec (jobs/job_spec.h ToJson), a priority (higher first) and its
+// An entry is a piece of work by name (unique in the queue, as in the store)
+// of a kind: a calibration job (its canonical spec, jobs/job_spec.h ToJson),
+// a loop (`calib loop`, its spec discovery/loop_spec.h) or an optimiser
+// comparison (`calib compare-optimizers`, its spec as submitted,
+// jobs/comparison_spec.h); with a priority (higher first) and its
 // submission order (the entry id: earlier first among equal priorities).
 // States: queued -> running -> done, or cancelled (from queued or running);
 // a done or cancelled entry is queued again by resume or an extended
@@ -30,10 +33,17 @@ std::string ToString(QueueState state);  ///< "queued", "running", "done", "canc
 /// Throws std::invalid_argument naming the value.
 QueueState QueueStateFromString(const std::string& name);
 
+/// What an entry runs.
+enum class QueueKind { kJob, kLoop, kComparison };
+std::string ToString(QueueKind kind);  ///< "job", "loop", "comparison"
+/// Throws std::invalid_argument naming the value and the kinds.
+QueueKind QueueKindFromString(const std::string& name);
+
 struct QueueEntry {
   int64_t id = 0;  ///< submission order
   std::string name;
-  nlohmann::json spec;
+  QueueKind kind = QueueKind::kJob;
+  nlohmann::json spec;  ///< the kind's spec
   int64_t priority = 0;
   double submitted_unix_s = 0.0;
   QueueState state = QueueState::kQueued;
@@ -52,7 +62,8 @@ class JobQueue {
 
   /// Queues a new entry; returns its id. Throws StoreError when the name is
   /// in the queue already.
-  int64_t Add(const std::string& name, const nlohmann::json& spec, int64_t priority, bool resume);
+  int64_t Add(const std::string& name, QueueKind kind, const nlohmann::json& spec, int64_t priority,
+              bool resume);
   /// The next queued entry (highest priority, then lowest id), marked
   /// running; nullopt when none is queued.
   std::optional<QueueEntry> ClaimNext();

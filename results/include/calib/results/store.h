@@ -3,10 +3,11 @@
 // evaluation of every job, and checkpoints. The store owns persistence; the
 // runner owns what goes in.
 //
-// Tables (schema version 4, PRAGMA user_version; a version 1 store, which
+// Tables (schema version 5, PRAGMA user_version; a version 1 store, which
 // lacks job_locks and job_inputs, a version 2 store, which lacks job_runs
-// and job_queue, or a version 3 store, whose evaluations are only ok or
-// failed and have no pruned frame, is migrated when opened for writing):
+// and job_queue, a version 3 store, whose evaluations are only ok or failed
+// and have no pruned frame, or a version 4 store, whose queue entries have no
+// kind, is migrated when opened for writing):
 //   jobs(id, name UNIQUE, spec_json, created_unix_s, updated_unix_s, status,
 //        stop_reason, result_json)
 //   evaluations(job_id, id, parameters_json, x_json, status ('ok', 'failed'
@@ -21,7 +22,7 @@
 //   job_runs(job_id, sequence, started_unix_s, program_version, host, pid,
 //        command)                                     every run or resume of a job
 //   job_queue(id, name UNIQUE, spec_json, priority, submitted_unix_s, state,
-//        start, message)                              the service's queue (job_queue.h)
+//        start, message, kind)                        the service's queue (job_queue.h)
 // The best evaluation is derived (lowest score among ok evaluations, ties to
 // the lowest id, as search::CheckedOptimizer ranks), so it can never
 // disagree with the evaluations.

@@ -16,6 +16,12 @@ void RequireInsideDataRoots(const std::filesystem::path& path,
                             const std::vector<std::filesystem::path>& roots,
                             const std::string& field);
 
+/// RequireInsideDataRoots for every recording of a spec, named `train[i]`
+/// and `holdout[i]`.
+void RequireRecordingsInsideDataRoots(const std::vector<std::filesystem::path>& train,
+                                      const std::vector<std::filesystem::path>& holdout,
+                                      const std::vector<std::filesystem::path>& roots);
+
 /// `relative` (a request's path below `folder`) as a path in `folder`:
 /// ServiceError 400 for an absolute path or a `..` component, 403 for one
 /// that leaves `folder` through a link.

@@ -2,6 +2,11 @@
 // The service's jobs: a queue in one results store (results/job_queue.h)
 // and a pool of workers that run queued jobs through RunJob (the same work
 // as `calib run` / `calib resume`: exact resume, the job lock, reports).
+// The queue holds loops (`calib loop`, discovery/loop_spec.h) and optimiser
+// comparisons (`calib compare-optimizers`) too, each run as its command runs
+// it in a folder of its own (<state_dir>/jobs/<name>/: its store, report and
+// files), resumed the way its command resumes; "job" below means any of the
+// three unless it says a calibration job.
 //
 // Submitted specs are validated before they are queued (ParseJobSpec, the
 // recordings read as `calib run` reads them); their paths are relative to
@@ -58,6 +63,18 @@ struct ServiceOptions {
   double report_max_age_s = 0.0;
   /// Recorded with every run of a job ("calib 0.1.0").
   std::string program_version = "calib";
+  /// Hosts calibration jobs run on as MPI ranks ("H1:SLOTS,H2:SLOTS", at
+  /// least 2 slots in all: rank 0 manages on the first host, the others
+  /// evaluate), through `mpi_launcher` (scripts/calib-mpirun.sh) with
+  /// `calib_executable` on every host; empty: on the server's threads.
+  /// Loops and comparisons run on the server's threads either way.
+  std::string mpi_hosts;
+  std::filesystem::path mpi_launcher;
+  /// Passed to the launcher's --mpirun-args (e.g. "--allow-run-as-root").
+  std::string mpirun_args;
+  /// The calib the launcher starts (the server's own, at the same path on
+  /// every host).
+  std::filesystem::path calib_executable;
 
   bool IsValid(std::string* error) const;
   std::filesystem::path store() const { return state_dir / "service.sqlite"; }
@@ -78,8 +95,9 @@ class JobService {
   /// queued for the next start. Idempotent.
   void Stop();
 
-  /// {"spec": object or YAML/JSON text, "priority": integer (default 0)}
-  /// -> {"name", "state": "queued", "notices": [...]}.
+  /// {"kind": "job" (default), "loop" or "comparison", "spec": object or
+  /// YAML/JSON text, "priority": integer (default 0)}
+  /// -> {"name", "kind", "state": "queued", "priority", "notices": [...]}.
   nlohmann::json Submit(const nlohmann::json& request);
   /// Every job: queue state, status and progress, by submission.
   nlohmann::json List() const;
@@ -90,16 +108,20 @@ class JobService {
   /// A cancelled, stopped or failed job is queued again to continue.
   nlohmann::json Resume(const std::string& name);
   /// {"evaluations": N} larger than the job's budget: queued to continue
-  /// to N (optimisers that allow it, search::BudgetExtendsExactly).
+  /// to N (calibration jobs whose optimiser allows it,
+  /// search::BudgetExtendsExactly).
   nlohmann::json ExtendBudget(const std::string& name, const nlohmann::json& request);
   /// Removes a job that is not running: its queue entry, its evaluations
-  /// and checkpoints, its report.
+  /// and checkpoints, its report (a loop's or a comparison's folder, its
+  /// store with it).
   nlohmann::json Delete(const std::string& name);
   /// The job, its summary and every evaluation.
   nlohmann::json Results(const std::string& name) const;
-  /// The best evaluation and its parameters (a parameter file's content).
+  /// The best evaluation and its parameters (a parameter file's content);
+  /// ServiceError 409 for a loop or a comparison.
   nlohmann::json Best(const std::string& name) const;
-  /// The files of the job's report folder (path, bytes).
+  /// The files of the job's folder (path, bytes), its results stores left
+  /// out.
   nlohmann::json Artefacts(const std::string& name) const;
   /// The file `relative` of the job's report folder (ServiceError 404 when
   /// absent, 400/403 for a path that leaves it).
@@ -108,7 +130,6 @@ class JobService {
   const ServiceOptions& options() const { return options_; }
 
  private:
-  JobSpec SpecOf(const nlohmann::json& canonical) const;
   QueueEntry Entry(const std::string& name) const;
   void Worker(bool prunes);
   /// Deletes the report folders past report_max_age_s.
