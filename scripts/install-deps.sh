@@ -2,6 +2,8 @@
 # Installs every build, test and run-time dependency of the project from
 # Debian 12 packages. Idempotent: when everything is present it prints nothing
 # and exits 0. Used by README, .ci/run and docker/Dockerfile.
+#   --ssh-server   also the ssh server the MPI worker containers of
+#                  docker/compose.yaml are reached by (the image only)
 set -euo pipefail
 
 packages=(
@@ -22,6 +24,12 @@ packages=(
   python3-scipy python3-optuna python3-cmaes
   nodejs chromium
 )
+if [[ "${1:-}" == "--ssh-server" ]]; then
+  packages+=(openssh-server openssh-client)
+elif [[ $# -gt 0 ]]; then
+  echo "install-deps: unknown option '$1' (the one option is --ssh-server)" >&2
+  exit 2
+fi
 
 missing=()
 for p in "${packages[@]}"; do
