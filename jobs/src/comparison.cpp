@@ -62,6 +62,7 @@ std::vector<ComparisonRunData> LoadComparisonRuns(const ComparisonSpec& spec) {
     if (info) {
       for (const EvaluationRecord& e : store.Evaluations(info->id)) {
         d.scores.push_back(e.ok ? e.score : std::numeric_limits<double>::quiet_NaN());
+        d.pruned += e.pruned ? 1 : 0;
         d.eval_seconds.push_back(e.eval_time_s);
       }
     }

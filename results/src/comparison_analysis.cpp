@@ -121,7 +121,9 @@ ComparisonAnalysis AnalyseComparison(const std::vector<ComparisonRunData>& runs,
     for (size_t r : rs) {
       o.evaluations += static_cast<int64_t>(runs[r].scores.size());
       o.failed += std::count_if(runs[r].scores.begin(), runs[r].scores.end(),
-                                [](double s) { return std::isnan(s); });
+                                [](double s) { return std::isnan(s); }) -
+                  runs[r].pruned;
+      o.pruned += runs[r].pruned;
       o.final_scores.push_back(best[r].empty() ? stats::kNaN : best[r].back());
     }
     const auto across = [&](const auto& value_of_run) {

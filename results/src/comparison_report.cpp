@@ -37,13 +37,14 @@ void WriteCsv(const std::filesystem::path& path, const std::vector<std::vector<s
 
 void WriteCsvFiles(const std::filesystem::path& dir, const ComparisonAnalysis& a) {
   std::vector<std::vector<std::string>> runs{
-      {"optimizer", "seed", "job", "status", "evaluations", "failed", "final_score"}};
+      {"optimizer", "seed", "job", "status", "evaluations", "failed", "pruned", "final_score"}};
   for (const ComparisonRunData& r : a.runs) {
     const std::vector<double> best = optimizer_stats::BestSoFar(r.scores);
-    int64_t failed = 0;
+    int64_t failed = -r.pruned;
     for (double s : r.scores) failed += std::isnan(s) ? 1 : 0;
     runs.push_back({r.optimizer, std::to_string(r.seed), r.job, r.status, std::to_string(r.scores.size()),
-                    std::to_string(failed), Text(best.empty() ? optimizer_stats::kNaN : best.back())});
+                    std::to_string(failed), std::to_string(r.pruned),
+                    Text(best.empty() ? optimizer_stats::kNaN : best.back())});
   }
   WriteCsv(dir / "runs.csv", runs);
 
@@ -138,15 +139,17 @@ std::string Page(const std::string& title, const ComparisonAnalysis& a, html::Pl
     << Escape(Text(a.best_score)) << ". Lower scores are better.</p>\n";
 
   h << "<h2>Runs and failures</h2>\n<table>\n<tr><th>optimizer</th><th>runs</th><th>evaluations</th>"
-       "<th>failed evaluations</th><th>median final</th><th>best final</th><th>worst final</th></tr>\n";
+       "<th>failed evaluations</th><th>pruned evaluations</th><th>median final</th><th>best final</th>"
+       "<th>worst final</th></tr>\n";
   for (const OptimizerSummary& o : a.optimizers) {
     h << "<tr><td>" << Escape(o.optimizer) << "</td><td class=\"n\">" << o.runs << "</td><td class=\"n\">"
-      << o.evaluations << "</td><td class=\"n\">" << o.failed << "</td>"
+      << o.evaluations << "</td><td class=\"n\">" << o.failed << "</td><td class=\"n\">" << o.pruned << "</td>"
       << Cell(optimizer_stats::Quantile(o.final_scores, 0.5)) << Cell(optimizer_stats::Quantile(o.final_scores, 0.0))
       << Cell(optimizer_stats::Quantile(o.final_scores, 1.0)) << "</tr>\n";
   }
-  h << "</table>\n<p>A failed evaluation (a simulation that failed) has no score; the store has no "
-       "pruned status, so none are counted.</p>\n";
+  h << "</table>\n<p>A failed evaluation (a simulation that failed) and a pruned one (stopped "
+       "early by a job's <code>budget.prune_factor</code>) have no score: the curves and statistics "
+       "pass over them, and they count against the budget.</p>\n";
 
   h << "<h2>Convergence</h2>\n";
   h << Figure(plot, BandPlotScript(a, &OptimizerSummary::by_evaluations, "best so far against evaluations",

@@ -20,7 +20,8 @@ struct ComparisonRunData {
   uint64_t seed = 0;
   std::string job;        ///< the job's name in the store
   std::string status;     ///< the job's status ("finished", ...)
-  std::vector<double> scores;        ///< per evaluation; NaN for a failed one
+  std::vector<double> scores;        ///< per evaluation; NaN for a failed or pruned one
+  int64_t pruned = 0;                ///< of those NaN, the pruned ones (stopped early)
   std::vector<double> eval_seconds;  ///< per evaluation (wall time of the evaluation)
 };
 
@@ -44,6 +45,7 @@ struct OptimizerSummary {
   int runs = 0;
   int64_t evaluations = 0;  ///< over all its runs
   int64_t failed = 0;       ///< failed evaluations over all its runs
+  int64_t pruned = 0;       ///< pruned evaluations (a job's budget.prune_factor) over all its runs
   std::vector<double> final_scores;      ///< best score per run (NaN: none finished)
   /// Per budget fraction: the best-so-far's quantiles over runs (x: the
   /// evaluations that fraction of the budget is).
