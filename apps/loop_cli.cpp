@@ -2,6 +2,7 @@
 
 #include "calib/discovery/loop.h"
 #include "calib/discovery/loop_benchmark.h"
+#include "calib/discovery/loop_spec.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -67,7 +68,7 @@ namespace {
 void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
   cmd->add_option("--seed", f->seed, "seed of every calibration")->capture_default_str();
   cmd->add_option("--budget", f->budget, "evaluations of the base model's calibration")
-      ->check(CLI::Range(int64_t{2}, int64_t{100000000}))
+      ->check(CLI::Range(kLoopBudgetRange.low, kLoopBudgetRange.high))
       ->capture_default_str();
   cmd->add_option("--effect-budget", f->effect_budget,
                   "evaluations of each calibration with an effect added (0: --budget)")
@@ -88,22 +89,22 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
       ->capture_default_str();
   cmd->add_option("--min-confidence", f->min_confidence,
                   "hypotheses below this confidence are not tried")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(CLI::Range(kLoopMinConfidenceRange.low, kLoopMinConfidenceRange.high))
       ->capture_default_str();
   cmd->add_option("--fdr", f->fdr,
                   "false-discovery rate of the keep rule's test, corrected for every hypothesis "
                   "tried (Benjamini-Hochberg)")
-      ->check(CLI::Range(0.001, 0.5))
+      ->check(CLI::Range(kLoopFdrRange.low, kLoopFdrRange.high))
       ->capture_default_str();
   cmd->add_option("--min-drop", f->min_drop,
                   "the smallest held-out drop worth an effect, as a fraction of the held-out XOR: "
                   "the keep rule's test asks for a drop beyond it")
-      ->check(CLI::Range(0.0, 0.5))
+      ->check(CLI::Range(kLoopMinDropRange.low, kLoopMinDropRange.high))
       ->capture_default_str();
   cmd->add_option("--held-out-stretch", f->held_out_stretch,
                   "without --holdout: the share of each training video, at its end, held out "
                   "(calibrated on the frames before)")
-      ->check(CLI::Range(0.05, 0.95))
+      ->check(CLI::Range(kLoopHeldOutStretchRange.low, kLoopHeldOutStretchRange.high))
       ->capture_default_str();
   cmd->add_option("--equally-good-fits", f->equally_good_fits,
                   "report only: fits of a model as good as its best on the training recordings "

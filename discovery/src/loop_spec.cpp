@@ -36,6 +36,12 @@ void ReadInRange(yaml_reader::MapReader& r, const std::string& key, T low, T hig
   *value = static_cast<T>(v);
 }
 
+template <typename T>
+void ReadInRange(yaml_reader::MapReader& r, const std::string& key, LoopOptionRange<T> range,
+                 T* value) {
+  ReadInRange(r, key, range.low, range.high, value);
+}
+
 std::vector<fs::path> ReadRecordings(yaml_reader::MapReader& r, const std::string& key,
                                      const fs::path& base_dir, bool required) {
   std::vector<fs::path> out;
@@ -72,7 +78,7 @@ LoopSpec ParseLoopSpec(const std::string& text, const std::string& source, const
   o.holdout = ReadRecordings(r, "holdout", base_dir, false);
 
   r.Read("seed", &o.seed);
-  ReadInRange<int64_t>(r, "budget", 2, 100000000, &o.budget);
+  ReadInRange(r, "budget", kLoopBudgetRange, &o.budget);
   ReadInRange<int64_t>(r, "effect_budget", 0, std::numeric_limits<int64_t>::max(), &o.effect_budget);
   if (r.Has("optimizer")) {
     const YAML::Node n = r.Get("optimizer");
@@ -84,10 +90,10 @@ LoopSpec ParseLoopSpec(const std::string& text, const std::string& source, const
   }
   ReadInRange<int>(r, "max_effects", 0, std::numeric_limits<int>::max(), &o.max_effects);
   ReadInRange<int>(r, "tries", 1, std::numeric_limits<int>::max(), &o.tries_per_round);
-  ReadInRange(r, "min_confidence", 0.0, 1.0, &o.min_confidence);
-  ReadInRange(r, "fdr", 0.001, 0.5, &o.false_discovery_rate);
-  ReadInRange(r, "min_drop", 0.0, 0.5, &o.min_relative_drop);
-  ReadInRange(r, "held_out_stretch", 0.05, 0.95, &o.held_out_stretch);
+  ReadInRange(r, "min_confidence", kLoopMinConfidenceRange, &o.min_confidence);
+  ReadInRange(r, "fdr", kLoopFdrRange, &o.false_discovery_rate);
+  ReadInRange(r, "min_drop", kLoopMinDropRange, &o.min_relative_drop);
+  ReadInRange(r, "held_out_stretch", kLoopHeldOutStretchRange, &o.held_out_stretch);
   ReadInRange<int>(r, "equally_good_fits", 0, std::numeric_limits<int>::max(), &o.equally_good_fits);
   ReadInRange<int>(r, "restarts", 1, std::numeric_limits<int>::max(), &o.restarts);
   ReadInRange<int>(r, "overlays", 0, std::numeric_limits<int>::max(), &o.overlays_per_recording);

@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -31,6 +32,19 @@ class LoopSpecError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// The bounds (inclusive) `calib loop`'s options and a loop spec's keys are
+/// held to, read by both; the other numbers are only non-negative or
+/// positive.
+template <typename T>
+struct LoopOptionRange {
+  T low, high;
+};
+inline constexpr LoopOptionRange<int64_t> kLoopBudgetRange{2, 100000000};
+inline constexpr LoopOptionRange<double> kLoopMinConfidenceRange{0.0, 1.0};
+inline constexpr LoopOptionRange<double> kLoopFdrRange{0.001, 0.5};
+inline constexpr LoopOptionRange<double> kLoopMinDropRange{0.0, 0.5};
+inline constexpr LoopOptionRange<double> kLoopHeldOutStretchRange{0.05, 0.95};
 
 struct LoopSpec {
   std::string name;
