@@ -171,7 +171,7 @@ int main(int argc, char** argv) {
       return *status;
     }
     if (const auto status = calib::cli::RunChosenSynthSubcommand(*synth_cli)) return *status;
-    if (const auto status = calib::cli::RunChosenCompareSubcommand(*compare_optimizers_cli)) {
+    if (const auto status = calib::cli::RunChosenCompareSubcommand(*compare_optimizers_cli, argc, argv)) {
       return *status;
     }
     if (const auto status = calib::cli::RunChosenServiceSubcommand(*service_cli)) return *status;

@@ -5,8 +5,10 @@
 #include "job_cli.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <filesystem>
+#include <memory>
 #include <string>
 
 namespace calib::cli {
@@ -20,6 +22,7 @@ struct CompareCli {
   double progress_interval_s = 10.0;
   std::string cache_dir;
   bool no_cache = false;
+  bool status = false;
 };
 
 std::shared_ptr<CompareCli> AddCompareSubcommand(CLI::App& app) {
@@ -37,19 +40,26 @@ std::shared_ptr<CompareCli> AddCompareSubcommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   AddProgressAndCacheOptions(cmd, &cli->progress, &cli->progress_interval_s, &cli->cache_dir,
                              &cli->no_cache);
+  cmd->add_flag("--status", cli->status,
+                "print where each run stands (finished, running, interrupted, not started) and "
+                "run nothing");
   return cli;
 }
 
-std::optional<int> RunChosenCompareSubcommand(CompareCli& cli) {
+std::optional<int> RunChosenCompareSubcommand(CompareCli& cli, int argc, char** argv) {
   if (!*cli.command) return std::nullopt;
-  if (LaunchedByMpi()) {
-    // Every rank would run the whole comparison against one store.
-    throw std::invalid_argument(
-        "compare-optimizers does not run under an MPI launcher yet: run it as one process "
-        "(--threads N), or run its jobs with calib run");
-  }
   const ComparisonSpec spec = LoadComparisonSpec(cli.spec, cli.out);
+  if (cli.status) {
+    fmt::print("{}", ComparisonStatusText(spec));
+    return 0;
+  }
+  // MPI is initialised only under an MPI launcher: rank 0 runs the
+  // comparison, the others evaluate each run's candidates.
+  std::unique_ptr<MpiSession> mpi;
+  if (LaunchedByMpi()) mpi = std::make_unique<MpiSession>(&argc, &argv);
+  if (mpi && mpi->rank() != 0) spdlog::set_level(spdlog::level::warn);
   ComparisonOptions options;
+  options.mpi = mpi.get();
   options.threads = cli.threads;
   if (!cli.cache_dir.empty()) options.cache_dir = std::filesystem::path(cli.cache_dir);
   options.no_cache = cli.no_cache;
@@ -57,6 +67,7 @@ std::optional<int> RunChosenCompareSubcommand(CompareCli& cli) {
   options.progress_interval_s = cli.progress_interval_s;
   options.program_version = std::string("calib ") + CALIB_VERSION;
   const ComparisonResult result = RunComparison(spec, spec.out_dir, options);
+  if (result.mpi_worker) return 0;
   fmt::print("{} runs: {} done before, {} run now\nstore: {}\n", result.runs, result.already_done,
              result.run_now, result.store.string());
   if (result.stopped) {

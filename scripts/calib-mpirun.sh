@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# calib-mpirun.sh: runs a calibration job over several hosts with mpirun and
-# resumes it on the hosts left when one of them dies.
+# calib-mpirun.sh: runs a calibration job (or an optimiser comparison) over
+# several hosts with mpirun and resumes it on the hosts left when one of
+# them dies.
 #
 #   scripts/calib-mpirun.sh --hosts H1[:SLOTS],H2[:SLOTS],... [options] [--] JOB.yaml [calib options]
+#   scripts/calib-mpirun.sh --hosts ... --compare [options] [--] SPEC.yaml [calib options]
 #
 # Rank 0 (the manager: optimiser, store, checkpoints) goes to the first host,
 # one worker rank to every other slot. Debian's Open MPI cannot survive a dead
@@ -11,7 +13,10 @@
 # job is resumable; this launcher then probes each host (`mpirun -H HOST -np 1
 # true`), drops those that do not answer and runs `calib resume` on the others.
 # A dead host costs the candidates in flight on every rank (one per worker)
-# and a restart; the history is the one an uninterrupted run gives.
+# and a restart; the history is the one an uninterrupted run gives. With
+# --compare it runs `calib compare-optimizers SPEC` (each run of the
+# comparison spread over the ranks) and, after a failure, the same command
+# again, which continues the comparison.
 #
 # Options:
 #   --hosts LIST          comma-separated hosts, each with an optional :SLOTS (1)
@@ -19,6 +24,7 @@
 #   --max-restarts N      resumes after a rank failure before giving up (3)
 #   --probe-timeout S     seconds a host has to answer the probe (30)
 #   --mpirun-args "ARGS"  extra mpirun arguments (word-split), e.g. MCA settings
+#   --compare             SPEC is an optimiser comparison (docs/compare.md)
 # Environment: CALIB (the calib executable; default build/apps/calib of this
 # repository), MPIRUN (mpirun).
 #
@@ -35,6 +41,7 @@ slots=()
 max_restarts=3
 probe_timeout=30
 mpirun_args=()
+compare=0
 
 usage() {
   sed -n '2,/^set -uo/p' "$0" | sed '$d; s/^# \{0,1\}//' >&2
@@ -82,6 +89,7 @@ while [[ $# -gt 0 ]]; do
       read -r -a extra <<<"$2"
       mpirun_args+=("${extra[@]}")
       shift 2 ;;
+    --compare) compare=1; shift ;;
     -h|--help) usage ;;
     --) shift; break ;;
     -*) fail "unknown option '$1'" ;;
@@ -101,12 +109,13 @@ fi
 job=$1
 shift
 calib_args=("$@")
-# The options `calib results` shares with run/resume, to find the job.
+# The options `calib results` shares with run/resume, to find the job (a
+# comparison's --status: its --out).
 lookup_args=()
 for ((i = 0; i < ${#calib_args[@]}; ++i)); do
   case ${calib_args[i]} in
-    --store|--name) lookup_args+=("${calib_args[i]}" "${calib_args[i + 1]:-}") ;;
-    --store=*|--name=*) lookup_args+=("${calib_args[i]}") ;;
+    --store|--name|--out) lookup_args+=("${calib_args[i]}" "${calib_args[i + 1]:-}") ;;
+    --store=*|--name=*|--out=*) lookup_args+=("${calib_args[i]}") ;;
   esac
 done
 
@@ -127,18 +136,25 @@ host_list() {  # HOST:SLOTS,... of the hosts given
 }
 
 # Waits until `calib results` no longer calls the job running (its lock's
-# holder has ended or gone stale); false after release_timeout seconds. It
-# asks on the first host, where the manager ran: there a holder's process
-# that has ended is seen at once (elsewhere only its heartbeat, stale after
-# 60 s, tells).
+# holder has ended or gone stale; for a comparison, until `calib
+# compare-optimizers --status` calls no run running); false after
+# release_timeout seconds. It asks on the first host, where the manager ran:
+# there a holder's process that has ended is seen at once (elsewhere only its
+# heartbeat, stale after 60 s, tells).
 release_timeout=120
 wait_for_release() {
-  local t status
+  local t running
   for ((t = 0; t < release_timeout; t += 2)); do
-    status=$(timeout "$probe_timeout" "$mpirun" "${mpirun_args[@]}" -H "${hosts[0]}:1" -np 1 \
-               "$calib" results "$job" "${lookup_args[@]}" 2>/dev/null |
-             awk '/^status:/ {print $2; exit}')
-    [[ $status == running* ]] || return 0
+    if [[ $compare -eq 1 ]]; then
+      running=$(timeout "$probe_timeout" "$mpirun" "${mpirun_args[@]}" -H "${hosts[0]}:1" -np 1 \
+                  "$calib" compare-optimizers "$job" "${lookup_args[@]}" --status 2>/dev/null |
+                grep -c '): running')
+    else
+      running=$(timeout "$probe_timeout" "$mpirun" "${mpirun_args[@]}" -H "${hosts[0]}:1" -np 1 \
+                  "$calib" results "$job" "${lookup_args[@]}" 2>/dev/null |
+                awk '/^status:/ {print $2; exit}' | grep -c '^running')
+    fi
+    [[ $running -eq 0 ]] && return 0
     sleep 2
   done
   return 1
@@ -146,7 +162,11 @@ wait_for_release() {
 
 restarts=0
 verb=run
-"$calib" results "$job" "${lookup_args[@]}" >/dev/null 2>&1 && verb=resume
+if [[ $compare -eq 1 ]]; then
+  verb=compare-optimizers  # it continues the comparison each time
+elif "$calib" results "$job" "${lookup_args[@]}" >/dev/null 2>&1; then
+  verb=resume
+fi
 while true; do
   np=0
   for n in "${slots[@]}"; do np=$((np + n)); done
@@ -206,5 +226,5 @@ while true; do
   else
     log "mpirun exit $rc with every host answering; resuming (restart $restarts of $max_restarts)"
   fi
-  verb=resume
+  [[ $compare -eq 1 ]] || verb=resume
 done

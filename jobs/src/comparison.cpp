@@ -2,11 +2,15 @@
 
 #include "calib/jobs/comparison.h"
 
+#include "calib/jobs/job_report.h"
+#include "calib/jobs/mpi_evaluator.h"
+
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <fstream>
 #include <limits>
+#include <map>
 #include <memory>
 #include <stdexcept>
 
@@ -37,6 +41,40 @@ ObjectiveFactory SharedRecordingObjective() {
 
 bool Done(JobStatus status) { return status == JobStatus::kFinished || status == JobStatus::kAborted; }
 
+// On the manager of several ranks: tells the workers which run comes next,
+// and on every way out (the last run done, a stop, an error) that none does.
+class NextRunAnnouncer {
+ public:
+  explicit NextRunAnnouncer(const MpiSession* mpi) : size_(mpi ? mpi->size() : 1) {}
+  ~NextRunAnnouncer() { Announce(-1); }
+  NextRunAnnouncer(const NextRunAnnouncer&) = delete;
+  NextRunAnnouncer& operator=(const NextRunAnnouncer&) = delete;
+
+  bool active() const { return size_ > 1; }
+  void Announce(int32_t index) {
+    if (size_ <= 1 || finished_) return;
+    SendNextJob(size_, index);
+    finished_ = index < 0;
+  }
+
+ private:
+  int size_;
+  bool finished_ = false;
+};
+
+// A worker rank: evaluates for each run the manager names, until it names
+// none.
+void RunComparisonWorker(const ComparisonSpec& spec, const JobCommandOptions& job_options) {
+  while (true) {
+    const int32_t index = ReceiveNextJob();
+    if (index < 0) return;
+    if (static_cast<size_t>(index) >= spec.runs.size()) {
+      throw std::logic_error(fmt::format("MPI: the manager named run {} of {}", index, spec.runs.size()));
+    }
+    (void)RunJob(spec.runs[static_cast<size_t>(index)].job, JobStart::kRun, job_options);
+  }
+}
+
 }  // namespace
 
 ComparisonAnalysisOptions AnalysisOptions(const ComparisonSpec& spec) {
@@ -45,6 +83,34 @@ ComparisonAnalysisOptions AnalysisOptions(const ComparisonSpec& spec) {
   o.relative_targets = spec.targets.kind == TargetKind::kRelative;
   o.targets = spec.targets.values;
   return o;
+}
+
+std::string ComparisonStatusText(const ComparisonSpec& spec) {
+  std::optional<ResultStore> store;
+  if (std::filesystem::exists(spec.store)) {
+    StoreOptions read_only;
+    read_only.read_only = true;
+    store.emplace(spec.store, read_only);
+  }
+  std::string text = fmt::format("comparison: {} (store {})\n", spec.name, spec.store.string());
+  std::map<std::string, int> counts;
+  for (const ComparisonRun& run : spec.runs) {
+    const std::optional<JobInfo> info = store ? store->FindJob(run.job.name) : std::nullopt;
+    std::string status = "not started";
+    std::string count = "not started";
+    if (info) {
+      status = JobStatusText(*store, *info);
+      // "running, by ..." and "interrupted (...)" counted by their first word.
+      count = status.substr(0, status.find_first_of(" ,"));
+      status += fmt::format(", {} evaluations", store->EvaluationCount(info->id));
+    }
+    text += fmt::format("{} seed {} (job {}): {}\n", run.label, run.seed, run.job.name, status);
+    ++counts[count];
+  }
+  std::string tally;
+  for (const auto& [status, n] : counts) tally += fmt::format(", {} {}", n, status);
+  text += fmt::format("{} runs{}\n", spec.runs.size(), tally.empty() ? "" : ":" + tally.substr(1));
+  return text;
 }
 
 std::vector<ComparisonRunData> LoadComparisonRuns(const ComparisonSpec& spec) {
@@ -76,9 +142,11 @@ ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem
   ComparisonResult result;
   result.store = spec.store;
   result.runs = static_cast<int>(spec.runs.size());
-  std::filesystem::create_directories(out_dir);
-  std::filesystem::create_directories(spec.store.parent_path());
-  {
+  const bool use_mpi = options.mpi != nullptr && options.mpi->size() > 1;
+  const bool manager = !use_mpi || options.mpi->rank() == 0;
+  if (manager) {
+    std::filesystem::create_directories(out_dir);
+    std::filesystem::create_directories(spec.store.parent_path());
     std::ofstream json(out_dir / "comparison.json");
     json << spec.ToJson().dump(1) << "\n";
     if (!json) throw std::runtime_error(fmt::format("{}: cannot write", (out_dir / "comparison.json").string()));
@@ -97,7 +165,17 @@ ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem
   job_options.handle_signals = options.handle_signals;
   job_options.interrupted = options.interrupted;
   job_options.make_objective = options.make_objective ? options.make_objective : SharedRecordingObjective();
+  if (use_mpi) job_options.mpi = options.mpi;
+  if (!manager) {
+    RunComparisonWorker(spec, job_options);
+    result.mpi_worker = true;
+    return result;
+  }
+  // Finished runs are only checked, by the manager alone.
+  JobCommandOptions check_options = job_options;
+  check_options.mpi = nullptr;
 
+  NextRunAnnouncer announcer(use_mpi ? options.mpi : nullptr);
   for (size_t i = 0; i < spec.runs.size(); ++i) {
     const ComparisonRun& run = spec.runs[i];
     std::optional<JobStatus> status;
@@ -108,12 +186,13 @@ ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem
     if (status && Done(*status)) {
       // Resuming a finished job does nothing but check that its spec and
       // recordings are the ones it ran with: a changed comparison is named.
-      (void)RunJob(run.job, JobStart::kResume, job_options);
+      (void)RunJob(run.job, JobStart::kResume, check_options);
       ++result.already_done;
       continue;
     }
     spdlog::info("run {}/{}: {} seed {} ({})", i + 1, spec.runs.size(), run.label, run.seed,
                  status ? "resumed" : "new");
+    announcer.Announce(static_cast<int32_t>(i));
     const JobCommandResult r = RunJob(run.job, status ? JobStart::kResume : JobStart::kRun, job_options);
     ++result.run_now;
     if (r.run.status == JobStatus::kStopped) {
@@ -121,6 +200,7 @@ ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem
       return result;
     }
   }
+  announcer.Announce(-1);
   result.analysis = AnalyseComparison(LoadComparisonRuns(spec), AnalysisOptions(spec));
   result.report = WriteComparisonReport(out_dir, spec.name, *result.analysis, options.report);
   return result;

@@ -16,7 +16,7 @@
 namespace calib {
 namespace {
 
-enum Tag : int { kReady = 101, kWork = 102, kResult = 103, kStop = 104 };
+enum Tag : int { kReady = 101, kWork = 102, kResult = 103, kStop = 104, kNextJob = 105 };
 
 // Packed bytes: trivially copyable values and length-prefixed strings.
 class Writer {
@@ -317,6 +317,19 @@ int64_t RunMpiWorker(const std::function<std::unique_ptr<Objective>()>& make_obj
     ++evaluated;
   }
   return evaluated;
+}
+
+void SendNextJob(int size, int32_t index) {
+  for (int rank = 1; rank < size; ++rank) {
+    MPI_Send(&index, 1, MPI_INT32_T, rank, kNextJob, MPI_COMM_WORLD);
+  }
+}
+
+int32_t ReceiveNextJob() {
+  (void)WaitFor(0, kNextJob);
+  int32_t index = -1;
+  MPI_Recv(&index, 1, MPI_INT32_T, 0, kNextJob, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+  return index;
 }
 
 }  // namespace calib

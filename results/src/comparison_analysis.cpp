@@ -85,6 +85,7 @@ ComparisonAnalysis AnalyseComparison(const std::vector<ComparisonRunData>& runs,
   if (runs.empty()) throw std::invalid_argument("comparison analysis: no runs");
   ComparisonAnalysis a;
   a.budget = options.budget;
+  a.budget_fractions = options.budget_fractions;
   a.alpha = options.alpha;
   a.runs = runs;
   a.relative_targets = options.relative_targets;

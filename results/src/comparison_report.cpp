@@ -58,7 +58,7 @@ void WriteCsvFiles(const std::filesystem::path& dir, const ComparisonAnalysis& a
     }
     for (size_t i = 0; i < o.fixed_budget.size(); ++i) {
       const Band& b = o.fixed_budget[i];
-      budget.push_back({o.optimizer, Text(b.x / static_cast<double>(a.budget)), Text(b.x), Text(b.q25),
+      budget.push_back({o.optimizer, Text(a.budget_fractions[i]), Text(b.x), Text(b.q25),
                         Text(b.median), Text(b.q75)});
     }
     for (size_t t = 0; t < a.target_scores.size(); ++t) {
@@ -163,8 +163,9 @@ std::string Page(const std::string& title, const ComparisonAnalysis& a, html::Pl
 
   h << "<h2>Fixed budget</h2>\n<table>\n<tr><th>optimizer</th>";
   if (!a.optimizers.empty()) {
-    for (const Band& b : a.optimizers.front().fixed_budget) {
-      h << "<th>" << b.x << " evaluations (" << Escape(Text(100.0 * b.x / static_cast<double>(a.budget)))
+    const std::vector<Band>& at = a.optimizers.front().fixed_budget;
+    for (size_t i = 0; i < at.size(); ++i) {
+      h << "<th>" << at[i].x << " evaluations (" << Escape(Text(100.0 * a.budget_fractions[i]))
         << " %): median [q25, q75]</th>";
     }
   }

@@ -3,7 +3,8 @@
 // substeps, so that an evaluation is cheap):
 //  - `calib run` killed with SIGKILL at random moments, several times, and
 //    resumed each time, ends with the history of an uninterrupted run;
-//  - `mpirun -np 3 calib run` gives the history of threads;
+//  - `mpirun -np 3 calib run` gives the history of threads, and so does
+//    `mpirun -np 3 calib compare-optimizers` for each run;
 //  - a second run or resume of a held job is refused naming its holder, a
 //    holder killed is shown as interrupted, and the resume takes over;
 //  - a corrupted checkpoint is reported and the job falls back past it;
@@ -326,6 +327,90 @@ TEST_F(JobCli, ThreeMpiRanksGiveTheHistoryOfThreadsWhenPruning) {
   EXPECT_CONTAINS(threads.out, fmt::format("{} pruned", pruned));
   testing::ExpectSameHistory(reference, History(dir / "mpi.sqlite", "cli_pruned"),
                              "3 MPI ranks vs 2 threads, pruning");
+}
+
+// A comparison (random with two seeds, DIRECT_L once) on the suite's small
+// objective, its store and report in `out`.
+fs::path WriteComparisonSpec(const fs::path& dir, const std::string& seeds) {
+  const fs::path spec = dir / fmt::format("compare_{}.yaml", seeds.size());
+  std::ofstream(spec) << fmt::format(R"yaml(
+name: mpi_compare
+train: [{}]
+model:
+  substeps: 4
+  mesh: {{edge_length_px: 40}}
+{}budget: {{evaluations: 12}}
+optimizers:
+  - {{name: random}}
+  - {{name: nlopt:DIRECT_L}}
+seeds: {}
+checkpoint: {{every_evaluations: 4, every_seconds: 0}}
+)yaml",
+                                     (fs::path(CALIB_SOURCE_DIR) / "examples" / "push_centre").string(),
+                                     testing::kBaseParametersYaml, seeds);
+  return spec;
+}
+
+// `mpirun -np 3 calib compare-optimizers`: every run spread over the ranks,
+// each run's history that of threads; a comparison begun with threads
+// (seed 1) is continued under MPI (seed 2 added) and ends as one run with
+// threads throughout; --status counts the runs.
+TEST_F(JobCli, ThreeMpiRanksCompareOptimizersAsThreadsDo) {
+  const fs::path dir = testing::ScratchDir("job_cli_mpi_compare");
+  const fs::path both = WriteComparisonSpec(dir, "[1, 2]");
+  const testing::ProcessResult threads = testing::RunProcess(
+      Args({"compare-optimizers", both.string(), "--out", (dir / "threads").string(),
+            "--threads", "2", "--progress", "none"}),
+      dir);
+  ASSERT_EQ(threads.exit_code, 0) << threads.out << threads.err;
+  EXPECT_CONTAINS(threads.out, "3 runs: 0 done before, 3 run now");
+
+  const testing::ProcessResult first = testing::RunProcess(
+      Args({"compare-optimizers", WriteComparisonSpec(dir, "[1]").string(), "--out",
+            (dir / "mpi").string(), "--threads", "2", "--progress", "none"}),
+      dir);
+  ASSERT_EQ(first.exit_code, 0) << first.out << first.err;
+  const testing::ProcessResult mpi = testing::RunProcess(
+      ThreeMpiRanks(Args({"compare-optimizers", both.string(), "--out", (dir / "mpi").string(),
+                          "--progress", "log"})),
+      dir, {}, 600.0);
+  ASSERT_EQ(mpi.exit_code, 0) << mpi.out << mpi.err;
+  EXPECT_CONTAINS(mpi.out, "3 runs: 2 done before, 1 run now");
+  EXPECT_CONTAINS(mpi.err, "MPI: manager and 2 worker ranks");
+  EXPECT_CONTAINS(mpi.out, "report: ");
+
+  for (const std::string job : {"mpi_compare.random.s1", "mpi_compare.random.s2",
+                                "mpi_compare.nlopt_DIRECT_L.s1"}) {
+    testing::ExpectSameHistory(History(dir / "threads" / "comparison.sqlite", job),
+                               History(dir / "mpi" / "comparison.sqlite", job),
+                               job + ": 3 MPI ranks (seed 2) vs 2 threads");
+  }
+  std::set<std::string> workers;
+  for (const auto& e : History(dir / "mpi" / "comparison.sqlite", "mpi_compare.random.s2")) {
+    workers.insert(e.worker);
+  }
+  EXPECT_EQ(workers, (std::set<std::string>{"rank 1", "rank 2"}));
+  // The report's numbers are those of threads: the same scores, ranks and
+  // statistics.
+  for (const char* csv : {"runs.csv", "convergence.csv", "fixed_budget.csv", "fixed_target.csv", "pairwise.csv"}) {
+    EXPECT_EQ(testing::ReadText(dir / "threads" / csv), testing::ReadText(dir / "mpi" / csv)) << csv;
+  }
+
+  // Run again under MPI: nothing left to run, the workers are let go at once.
+  const testing::ProcessResult again = testing::RunProcess(
+      ThreeMpiRanks(Args({"compare-optimizers", both.string(), "--out", (dir / "mpi").string(),
+                          "--progress", "none"})),
+      dir, {}, 600.0);
+  ASSERT_EQ(again.exit_code, 0) << again.out << again.err;
+  EXPECT_CONTAINS(again.out, "3 runs: 3 done before, 0 run now");
+
+  const testing::ProcessResult status = testing::RunProcess(
+      {kCalib, "compare-optimizers", both.string(), "--out", (dir / "mpi").string(), "--status"},
+      dir);
+  ASSERT_EQ(status.exit_code, 0) << status.err;
+  EXPECT_CONTAINS(status.out, "random seed 2 (job mpi_compare.random.s2): finished (");
+  EXPECT_CONTAINS(status.out, ", 12 evaluations\n");
+  EXPECT_CONTAINS(status.out, "3 runs: 3 finished\n");
 }
 
 TEST_F(JobCli, ResultsPrintsAndExportsAndBestFeedsSimulate) {

@@ -1,6 +1,7 @@
 // The optimiser comparison's analysis and report count failed and pruned
 // evaluations apart (a pruned one, stopped early by a job's
-// budget.prune_factor, has no score either).
+// budget.prune_factor, has no score either), and name each fixed budget by
+// the fraction asked for.
 
 #include "calib/results/comparison_analysis.h"
 #include "calib/results/comparison_report.h"
@@ -72,6 +73,27 @@ TEST(ComparisonReport, CountsFailedAndPrunedEvaluationsApart) {
   }
   const std::string html = testing::ReadText(dir / "report.html");
   EXPECT_NE(html.find("<th>pruned evaluations</th>"), std::string::npos);
+}
+
+// At 4 evaluations 10 % and 25 % of the budget are both one evaluation:
+// the table still names each by its fraction.
+TEST(ComparisonReport, NamesEachFixedBudgetByItsFraction) {
+  const std::vector<ComparisonRunData> runs{RunOf("a", 1, {5.0, 4.0, 3.0, 2.0}, 0)};
+  ComparisonAnalysisOptions options;
+  options.budget = 4;
+  const ComparisonAnalysis analysis = AnalyseComparison(runs, options);
+  const auto dir = testing::ScratchDir("comparison_report_fractions");
+  WriteComparisonReport(dir, "fractions", analysis);
+  const testing::CsvRows rows = testing::ParseCsvFile(dir / "fixed_budget.csv");
+  const testing::CsvRows expected{{"optimizer", "fraction", "evaluations", "q25", "median", "q75"},
+                                  {"a", "0.1", "1", "5", "5", "5"},
+                                  {"a", "0.25", "1", "5", "5", "5"},
+                                  {"a", "0.5", "2", "4", "4", "4"},
+                                  {"a", "1", "4", "2", "2", "2"}};
+  EXPECT_EQ(rows, expected);
+  const std::string html = testing::ReadText(dir / "report.html");
+  EXPECT_NE(html.find("<th>1 evaluations (10 %)"), std::string::npos);
+  EXPECT_NE(html.find("<th>1 evaluations (25 %)"), std::string::npos);
 }
 
 }  // namespace

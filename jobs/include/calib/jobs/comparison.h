@@ -10,6 +10,12 @@
 // run's history depends only on its spec and seed, so a comparison killed
 // at any moment and run again gives the results of an uninterrupted one, at
 // any thread count.
+//
+// MPI. Under an MPI launcher (ComparisonOptions::mpi with several ranks)
+// the runs still go one after the other, each spread over every rank as a
+// job under MPI is (mpi_evaluator.h): rank 0 runs the optimisers, the store
+// and the report, and tells the other ranks which run comes next. A run's
+// history is the one threads give, so the comparison's numbers are too.
 
 #include "calib/jobs/comparison_spec.h"
 #include "calib/jobs/job_commands.h"
@@ -45,6 +51,9 @@ struct ComparisonOptions {
   /// Recorded with each run of a job (JobCommandOptions::program_version),
   /// the command as "compare-optimizers".
   std::string program_version = "calib";
+  /// Set when launched by MPI with several ranks (MpiSession); the same
+  /// spec on every rank.
+  const MpiSession* mpi = nullptr;
 };
 
 struct ComparisonResult {
@@ -57,6 +66,9 @@ struct ComparisonResult {
   bool stopped = false;
   std::optional<ComparisonAnalysis> analysis;  ///< set when every run is done
   std::optional<ComparisonReportSummary> report;
+  /// This process was an MPI worker rank: it evaluated, and has nothing to
+  /// report.
+  bool mpi_worker = false;
 };
 
 /// Runs (or continues) the comparison and, once every run is done, writes
@@ -64,6 +76,13 @@ struct ComparisonResult {
 /// Errors as RunJob's.
 ComparisonResult RunComparison(const ComparisonSpec& spec, const std::filesystem::path& out_dir,
                                const ComparisonOptions& options);
+
+/// Where the comparison stands, without running anything: a line per run
+/// ("cmaes seed 3 (job NAME.cmaes.s3): finished (...), 480 evaluations",
+/// the status as `calib results` gives it: a run left running by a process
+/// that has stopped is "interrupted") and a last line counting the runs by
+/// status ("109 runs: 40 finished, 1 running, 68 not started").
+std::string ComparisonStatusText(const ComparisonSpec& spec);
 
 /// Every run's evaluations from the comparison's store, in spec order; a
 /// run not in the store has none.

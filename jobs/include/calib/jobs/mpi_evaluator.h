@@ -19,6 +19,9 @@
 //   worker -> manager  kResult  the FinishedCandidate (with the trace of the
 //                               score so far when pruning: a double a frame)
 //   manager -> worker  kStop    (empty)
+//   manager -> worker  kNextJob the index of the job the ranks run next, or
+//                               -1: none (several jobs on the same ranks,
+//                               one after the other: a comparison's runs)
 
 #include "calib/jobs/batch_evaluator.h"
 #include "calib/jobs/objective.h"
@@ -85,5 +88,13 @@ class MpiBatchEvaluator final : public BatchEvaluator {
 /// ObjectiveWorker, evaluates candidates until kStop. Returns the number of
 /// candidates evaluated. `rank` labels the evaluations ("rank 2").
 int64_t RunMpiWorker(const std::function<std::unique_ptr<Objective>()>& make_objective, int rank);
+
+/// Several jobs on the same ranks, one after the other (an optimiser
+/// comparison's runs): before each job the manager tells every worker of
+/// the `size` ranks which job comes next (an index >= 0), and -1 when none
+/// does. Each job is then one RunMpiWorker on every worker.
+void SendNextJob(int size, int32_t index);
+/// The worker's side: waits for the manager's next index (-1: none).
+int32_t ReceiveNextJob();
 
 }  // namespace calib

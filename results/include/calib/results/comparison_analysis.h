@@ -69,6 +69,9 @@ struct PairwiseTest {
 
 struct ComparisonAnalysis {
   int64_t budget = 0;
+  /// The fixed-budget fractions (options.budget_fractions): fixed_budget[i]
+  /// of each optimiser is at ceil(budget_fractions[i] * budget) evaluations.
+  std::vector<double> budget_fractions;
   double alpha = 0.05;
   double best_score = 0.0;            ///< over every run
   std::vector<double> target_values;  ///< as given (fractions or scores)
