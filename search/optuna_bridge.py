@@ -11,11 +11,17 @@ python3-cmaes for the CMA-ES sampler), e.g. in a spec:
       options: {sampler: tpe}      # or cmaes
 
 Options: sampler (tpe | cmaes, default tpe); n_startup_trials (TPE, default
-Optuna's 10). The study minimises over the box given in "start", one float
-parameter per coordinate, seeded with the job's seed. "save" returns the
-whole in-memory study pickled (its trials, the sampler and the sampler's
-random state, base64), so a restored bridge proposes exactly what this one
-would have.
+Optuna's 10); failed (worst | fail, default worst): what the study is told
+of an evaluation that failed (value null). "worst": the worst value any
+trial has finished with so far, as calib's own optimisers rank a failure
+worse than any finished evaluation, so that the sampler learns to avoid
+where simulations fail; "fail": Optuna's FAIL state, which its samplers
+leave out of their models (they keep proposing there). Before any trial has
+finished a failure is told as FAIL either way. The study minimises over the
+box given in "start", one float parameter per coordinate, seeded with the
+job's seed. "save" returns the whole in-memory study pickled (its trials,
+the sampler and the sampler's random state, base64), so a restored bridge
+proposes exactly what this one would have.
 """
 
 import base64
@@ -36,12 +42,18 @@ class Bridge:
         self.study = None
         self.distributions = None
         self.pending = []  # trial numbers asked and not yet told, ask order
+        self.failed_as_worst = True
+        self.worst = None  # the worst value a trial finished with (failures told as it excluded)
 
     def start(self, msg):
         options = msg.get("options") or {}
-        unknown = set(options) - {"sampler", "n_startup_trials"}
+        unknown = set(options) - {"sampler", "n_startup_trials", "failed"}
         if unknown:
-            raise ValueError("unknown options: %s (known: sampler, n_startup_trials)" % sorted(unknown))
+            raise ValueError("unknown options: %s (known: sampler, n_startup_trials, failed)" % sorted(unknown))
+        failed = options.get("failed", "worst")
+        if failed not in ("worst", "fail"):
+            raise ValueError("failed '%s' is unknown; worst or fail" % failed)
+        self.failed_as_worst = failed == "worst"
         name = options.get("sampler", "tpe")
         seed = int(msg["seed"]) % (2 ** 32)
         if name == "tpe":
@@ -72,23 +84,32 @@ class Bridge:
         results = msg["results"]
         if len(results) != len(self.pending):
             raise ValueError("told %d results for %d points asked" % (len(results), len(self.pending)))
+        # The finished first, so that a failure in the batch is told the
+        # worst value including theirs; then the failures, in ask order.
+        for number, result in zip(self.pending, results):
+            if result["value"] is not None:
+                value = float(result["value"])
+                self.study.tell(number, value)
+                self.worst = value if self.worst is None else max(self.worst, value)
         for number, result in zip(self.pending, results):
             if result["value"] is None:
-                self.study.tell(number, state=optuna.trial.TrialState.FAIL)
-            else:
-                self.study.tell(number, float(result["value"]))
+                if self.failed_as_worst and self.worst is not None:
+                    self.study.tell(number, self.worst)
+                else:
+                    self.study.tell(number, state=optuna.trial.TrialState.FAIL)
         self.pending = []
         return {"ok": True}
 
     def save(self, msg):
-        blob = pickle.dumps((self.study, self.distributions, self.pending))
+        blob = pickle.dumps((self.study, self.distributions, self.pending, self.failed_as_worst, self.worst))
         return {"state": {"pickle": base64.b64encode(blob).decode("ascii"), "optuna": optuna.__version__}}
 
     def restore(self, msg):
         state = msg["state"]
         if state.get("optuna") != optuna.__version__:
             raise ValueError("state saved by Optuna %s, this is %s" % (state.get("optuna"), optuna.__version__))
-        self.study, self.distributions, self.pending = pickle.loads(base64.b64decode(state["pickle"]))
+        (self.study, self.distributions, self.pending, self.failed_as_worst,
+         self.worst) = pickle.loads(base64.b64decode(state["pickle"]))
         return {"ok": True}
 
 
