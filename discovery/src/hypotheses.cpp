@@ -278,15 +278,30 @@ Hypothesis TracePlasticity(const ResidualAnalysis& a, double significance, Persi
     b.h.summary = "no release";
     return b.h;
   }
+  // How much of the loaded error stays after the release, counted on the
+  // shape's own error (the mesh laid rigidly onto the object) where the
+  // analysis has it: a pose left wrong after the release (the body turned
+  // or slid otherwise than the object during the push) is no permanent set
+  // and no deformation held. Whether what stays is more than noise: the
+  // residual's excess thickness over the pre-load floor, as measured.
+  const bool shape = std::isfinite(ps.shape_persistent_ratio);
+  const double ratio = shape ? ps.shape_persistent_ratio : ps.persistent_ratio;
   const double floor = std::isfinite(ps.before_xor_px) ? ps.before_xor_px : 0.0;
   const double excess_thickness =
       a.rest_perimeter_px > 0 ? (ps.released_late_xor_px - floor) / a.rest_perimeter_px : 0.0;
   const double s_persist = b.Add(
-      "persistent_ratio", ps.persistent_ratio,
-      Ramp(ps.persistent_ratio, 0.15, 0.5) * Ramp(excess_thickness, 0.3, 1.0),
-      fmt::format("after release the residual stays at {:.0f} px/frame (late third) = {:.0f}% of "
-                  "the loaded residual {:.0f} px/frame above the pre-load floor {:.0f} px/frame",
-                  ps.released_late_xor_px, 100 * ps.persistent_ratio, ps.loaded_xor_px, floor));
+      "persistent_ratio", ratio, Ramp(ratio, 0.15, 0.5) * Ramp(excess_thickness, 0.3, 1.0),
+      shape ? fmt::format("after release the shape error (the mesh laid rigidly onto the object) "
+                          "stays at {:.0f} px/frame (late third) = {:.0f}% of the loaded {:.0f} "
+                          "px/frame above the pre-load floor {:.0f} px/frame; the whole residual "
+                          "at {:.0f} px/frame, {:.2f} px thicker than that floor",
+                          ps.released_late_rigid_xor_px, 100 * ratio, ps.loaded_rigid_xor_px,
+                          std::isfinite(ps.before_rigid_xor_px) ? ps.before_rigid_xor_px : 0.0,
+                          ps.released_late_xor_px, excess_thickness)
+            : fmt::format("after release the residual stays at {:.0f} px/frame (late third) = "
+                          "{:.0f}% of the loaded residual {:.0f} px/frame above the pre-load "
+                          "floor {:.0f} px/frame",
+                          ps.released_late_xor_px, 100 * ratio, ps.loaded_xor_px, floor));
   const double s_contact = b.Add(
       "contact_concentration", ps.contact_concentration,
       Ramp(ps.contact_concentration, 1.2, 3.0) * Ramp(ps.contact_fraction, 0.1, 0.4),

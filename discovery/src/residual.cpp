@@ -17,7 +17,9 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <stdexcept>
+#include <tuple>
 #include <utility>
 
 namespace calib {
@@ -418,6 +420,7 @@ ResidualAnalyser::ResidualAnalyser(std::shared_ptr<const RecordingResidualFacts>
   claimed_ = BitMask(object_masks_[0].width(), object_masks_[0].height(),
                      object_masks_[0].origin_x(), object_masks_[0].origin_y());
   previous_mesh_ = claimed_;
+  moved_mask_ = claimed_;
 }
 
 Vec2 ResidualAnalyser::NearestBoundaryRestPoint(std::span<const Vec2> positions,
@@ -564,6 +567,39 @@ void ResidualAnalyser::MapResidualToRest(std::span<const Vec2> positions, const 
   }
 }
 
+std::pair<int64_t, double> ResidualAnalyser::RigidXor(std::span<const Vec2> positions,
+                                                      const BitMask& object, const Vec2& mesh_centroid,
+                                                      const Vec2& object_centroid) {
+  moved_.resize(positions.size());
+  const auto xor_at = [&](double turn_rad) {
+    const double c = std::cos(turn_rad), s = std::sin(turn_rad);
+    for (size_t i = 0; i < positions.size(); ++i) {
+      const Vec2 d = positions[i] - mesh_centroid;
+      moved_[i] = object_centroid + Vec2(c * d.x() - s * d.y(), s * d.x() + c * d.y());
+    }
+    rasterizer_.RasterizeMesh(mesh_, moved_.data(), moved_mask_);
+    return CountXorShifted(object, moved_mask_, 0, 0);
+  };
+  const double degree = std::numbers::pi / 180.0;
+  int64_t best = xor_at(0.0);
+  double best_turn = 0.0;
+  const auto consider = [&](double turn_rad) {
+    const int64_t x = xor_at(turn_rad);
+    // Ties go to the smaller turn: no turn unless one helps.
+    if (x < best || (x == best && std::abs(turn_rad) < std::abs(best_turn))) {
+      best = x;
+      best_turn = turn_rad;
+    }
+  };
+  const int coarse = static_cast<int>(std::lround(kRigidTurnSearchDeg / 2.0));
+  for (int k = -coarse; k <= coarse; ++k) {
+    if (k != 0) consider(2.0 * k * degree);
+  }
+  const double centre = best_turn;
+  for (const double d : {-1.5, -1.0, -0.5, 0.5, 1.0, 1.5}) consider(centre + d * degree);
+  return {best, best_turn};
+}
+
 void ResidualAnalyser::AddFrame(int frame, std::span<const Vec2> positions,
                                 const BitMask& mesh_mask) {
   if (frame != static_cast<int>(frames_.size()) || frame >= scene_.num_frames) {
@@ -606,6 +642,11 @@ void ResidualAnalyser::AddFrame(int frame, std::span<const Vec2> positions,
                                        -static_cast<int>(std::lround(r.offset_px.y())));
   } else {
     r.aligned_xor_px = px(score.xor_px);
+  }
+  r.rigid_xor_px = r.aligned_xor_px;
+  if (r.offset_px.allFinite() && mm.area_px > 0.0) {
+    std::tie(r.rigid_xor_px, r.rigid_turn_rad) =
+        RigidXor(positions, object, mm.centroid_px, om.centroid_px);
   }
   r.force_n = facts_->force_n[frame];
   r.object_deformation = facts_->object_deformation[frame];

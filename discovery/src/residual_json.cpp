@@ -50,6 +50,8 @@ void VisitFrame(S& r, F& f) {
   f("mesh_px", r.mesh_px);
   f("iou", r.iou);
   f("aligned_xor_px", r.aligned_xor_px);
+  f("rigid_xor_px", r.rigid_xor_px);
+  f("rigid_turn_rad", r.rigid_turn_rad);
   f("object_centroid_px", r.object_centroid_px);
   f("mesh_centroid_px", r.mesh_centroid_px);
   f("offset_px", r.offset_px);
@@ -149,6 +151,10 @@ void VisitPersistence(S& p, F& f) {
   f("released_early_xor_px", p.released_early_xor_px);
   f("released_late_xor_px", p.released_late_xor_px);
   f("persistent_ratio", p.persistent_ratio);
+  f("before_rigid_xor_px", p.before_rigid_xor_px);
+  f("loaded_rigid_xor_px", p.loaded_rigid_xor_px);
+  f("released_late_rigid_xor_px", p.released_late_rigid_xor_px);
+  f("shape_persistent_ratio", p.shape_persistent_ratio);
   f("fading_ratio", p.fading_ratio);
   f("contact_fraction", p.contact_fraction);
   f("contact_concentration", p.contact_concentration);

@@ -418,18 +418,25 @@ ResidualAnalysis ResidualAnalyser::Finish() const {
   PersistenceSummary& ps = out.persistence;
   {
     std::vector<double> before, loaded, released;
+    std::vector<double> before_rigid, loaded_rigid, released_rigid;
     std::vector<std::pair<double, double>> loaded_by_force;
     int release = -1;
     for (int f = 0; f < n; ++f) {
       const LoadPhase p = frames_[f].phase;
-      if (p == LoadPhase::kBeforeLoad) before.push_back(xor_px[f]);
+      const auto rigid = static_cast<double>(frames_[f].rigid_xor_px);
+      if (p == LoadPhase::kBeforeLoad) {
+        before.push_back(xor_px[f]);
+        before_rigid.push_back(rigid);
+      }
       if (IsLoaded(p)) {
         loaded.push_back(xor_px[f]);
+        loaded_rigid.push_back(rigid);
         loaded_by_force.push_back({frames_[f].force_n, xor_px[f]});
       }
       if (p == LoadPhase::kReleased) {
         if (release < 0) release = f;
         released.push_back(xor_px[f]);
+        released_rigid.push_back(rigid);
       }
     }
     // Floor of the change signals: the quietest 9-frame median.
@@ -461,6 +468,14 @@ ResidualAnalysis ResidualAnalyser::Finish() const {
       const double span = std::max(ps.loaded_xor_px - floor, 1.0);
       ps.persistent_ratio = std::max(0.0, ps.released_late_xor_px - floor) / span;
       ps.fading_ratio = std::max(0.0, ps.released_early_xor_px - ps.released_late_xor_px) / span;
+      // The same for the shape's own error (a pose left wrong not counted).
+      if (!before_rigid.empty()) ps.before_rigid_xor_px = Mean(before_rigid);
+      ps.loaded_rigid_xor_px = Mean(loaded_rigid);
+      ps.released_late_rigid_xor_px =
+          Mean(std::vector<double>(released_rigid.end() - third, released_rigid.end()));
+      const double rigid_floor = std::isfinite(ps.before_rigid_xor_px) ? ps.before_rigid_xor_px : 0.0;
+      ps.shape_persistent_ratio = std::max(0.0, ps.released_late_rigid_xor_px - rigid_floor) /
+                                  std::max(ps.loaded_rigid_xor_px - rigid_floor, 1.0);
       const auto& rel = regions_.counts[2];
       const RegionCounts& all = rel[static_cast<int>(RestRegion::kAll)];
       const RegionCounts& contact = rel[static_cast<int>(RestRegion::kContact)];

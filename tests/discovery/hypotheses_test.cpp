@@ -296,12 +296,17 @@ TEST(Hypotheses, ForceGrowingFasterThanThePushIsStrainStiffening) {
   EXPECT_NE(none.statement.find("no force"), std::string::npos) << none.statement;
 }
 
-TEST(Hypotheses, LopsidedElasticResidualIsUnevenStiffness) {
-  ResidualAnalysis a = Pushed();
+// Missed pixels on one side of the push line, extra on the other.
+void MakeLopsided(ResidualAnalysis& a) {
   a.regions.side_asymmetry = 0.9;
   a.regions.side_imbalance = 0.5;
   a.regions.side_dipole = 0.5;
   a.regions.signed_dipole = Vec2(0.5, 0.0);
+}
+
+TEST(Hypotheses, LopsidedElasticResidualIsUnevenStiffness) {
+  ResidualAnalysis a = Pushed();
+  MakeLopsided(a);
   const auto hs = TraceHypotheses(a, {});
   EXPECT_EQ(hs.front().effect, "uneven_stiffness");
   EXPECT_DOUBLE_EQ(FindEvidence(hs.front(), "side_asymmetry").value, 0.9);
@@ -329,6 +334,40 @@ TEST(Hypotheses, LopsidedElasticResidualIsUnevenStiffness) {
   EXPECT_NEAR(FindEvidence(Find(TraceHypotheses(free, {}), "uneven_stiffness"), "not_a_shift").value,
               0.8, 1e-12);
   EXPECT_LT(Find(TraceHypotheses(free, {}), "uneven_stiffness").confidence, 0.01);
+}
+
+// After the release the residual stays, but the mesh laid rigidly onto the
+// object removes it: the body was left turned (the stiff side of an uneven
+// object turned it otherwise than the model), its shape recovered. No
+// permanent set, no held deformation, and the lopsided residual stays
+// elastic: uneven stiffness.
+TEST(Hypotheses, APoseLeftWrongAfterReleaseIsNotAPersistentDeformation) {
+  ResidualAnalysis a = Pushed();
+  MakeLopsided(a);
+  ResidualAfterRelease(a, 2400.0, 2600.0, 0.1, 1.0);  // 192 % of the loaded residual stays
+  const double plastic_raw = Find(TraceHypotheses(a, {}), "plasticity").confidence;
+  const double uneven_raw = Find(TraceHypotheses(a, {}), "uneven_stiffness").confidence;
+  EXPECT_LT(uneven_raw, 0.1) << "counted on the whole residual, it is persistent, not elastic";
+
+  a.persistence.before_rigid_xor_px = 280.0;
+  a.persistence.loaded_rigid_xor_px = 1100.0;
+  a.persistence.released_late_rigid_xor_px = 300.0;
+  a.persistence.shape_persistent_ratio = (300.0 - 280.0) / (1100.0 - 280.0);
+  const auto hs = TraceHypotheses(a, {});
+  EXPECT_EQ(hs.front().effect, "uneven_stiffness");
+  EXPECT_GT(hs.front().confidence, 0.5);
+  const Evidence& e = FindEvidence(Find(hs, "plasticity"), "persistent_ratio");
+  EXPECT_DOUBLE_EQ(e.value, a.persistence.shape_persistent_ratio);
+  EXPECT_EQ(e.support, 0.0);
+  EXPECT_NE(e.statement.find("laid rigidly onto the object"), std::string::npos) << e.statement;
+  EXPECT_LT(Find(hs, "plasticity").confidence, plastic_raw);
+  EXPECT_LT(Find(hs, "table_friction").confidence, 0.05);
+
+  // A shape error that stays (a dent) is persistent on either count.
+  a.persistence.released_late_rigid_xor_px = 1000.0;
+  a.persistence.shape_persistent_ratio = (1000.0 - 280.0) / (1100.0 - 280.0);
+  EXPECT_GT(FindEvidence(Find(TraceHypotheses(a, {}), "plasticity"), "persistent_ratio").support, 0.9);
+  EXPECT_LT(Find(TraceHypotheses(a, {}), "uneven_stiffness").confidence, 0.1);
 }
 
 TEST(Hypotheses, EffectsAlreadyInTheModelAreLeftOut) {

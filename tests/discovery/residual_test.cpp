@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -348,6 +349,44 @@ TEST(ResidualAnalyser, ShiftedMeshSplitsIntoMissedAndExtraExactly) {
   EXPECT_EQ(area, 6000.0);
 }
 
+// Pixels whose centres lie inside the rectangle [x0, x1) x [y0, y1)
+// turned by `angle` about its centre.
+BitMask TurnedRectMask(int width, int height, double x0, double y0, double x1, double y1,
+                       double angle) {
+  BitMask m(width, height);
+  const Vec2 c(0.5 * (x0 + x1), 0.5 * (y0 + y1));
+  const double ca = std::cos(angle), sa = std::sin(angle);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const Vec2 d = Vec2(x + 0.5, y + 0.5) - c;
+      const Vec2 u(ca * d.x() + sa * d.y(), -sa * d.x() + ca * d.y());  // turned back
+      if (std::abs(u.x()) < 0.5 * (x1 - x0) && std::abs(u.y()) < 0.5 * (y1 - y0)) m.Set(x, y);
+    }
+  }
+  return m;
+}
+
+TEST(ResidualAnalyser, ATurnedMeshIsAPoseErrorNotAShapeError) {
+  ShiftCase c;
+  ResidualAnalyser analyser(c.mesh, c.scene, c.object, {}, "turn");
+  // The mesh turned by 10 degrees about the rest shape's centre.
+  const double turn = 10.0 * kPi / 180.0;
+  const Vec2 centre(150.0, 130.0);
+  std::vector<Vec2> positions = c.mesh.rest_positions;
+  for (Vec2& p : positions) {
+    const Vec2 d = p - centre;
+    p = centre + Vec2(std::cos(turn) * d.x() - std::sin(turn) * d.y(),
+                      std::sin(turn) * d.x() + std::cos(turn) * d.y());
+  }
+  BitMask mesh_mask(320, 240);
+  Rasterizer().RasterizeMesh(c.mesh, positions, mesh_mask);
+  analyser.AddFrame(0, positions, mesh_mask);
+  const ResidualFrame& f = analyser.Finish().frames.at(0);
+  EXPECT_GT(f.aligned_xor_px, 1000) << "no translation lays a turned mesh onto the object";
+  EXPECT_LT(f.rigid_xor_px, f.aligned_xor_px / 50) << "the turn back does";
+  EXPECT_NEAR(f.rigid_turn_rad, -turn, 0.6 * kPi / 180.0) << "within the search's half-degree step";
+}
+
 TEST(ResidualAnalyser, ObstacleBandsCountByDistance) {
   ShiftCase c;
   c.scene.num_obstacles = 1;
@@ -547,6 +586,31 @@ TEST(ResidualAnalyser, PlasticDentPersistsAfterRelease) {
   EXPECT_EQ(a.Phase(LoadPhase::kBeforeLoad)->first_frame, 0);
   EXPECT_NEAR(a.Phase(LoadPhase::kHold)->first_frame, 30, 1);
   EXPECT_NEAR(a.push.hold_force_change, 0.0, 1e-9);
+}
+
+// A push that turns the object (8 degrees, kept after the release) without
+// denting it, against a mesh that stays at rest: the residual persists, the
+// shape error does not.
+TEST(ResidualAnalyser, APoseLeftTurnedAfterReleaseIsNoPersistentShapeError) {
+  DentCase c(true, 0.0);
+  const double turn = 8.0 * kPi / 180.0;
+  double kept = 0.0;
+  for (int f = 0; f < c.scene.num_frames; ++f) {
+    // The finger's depth below the top edge, from its disc.
+    const double d = c.scene.obstacle_discs[f].centre.y() + 25.0 - 100.0;
+    if (f < 45) kept = std::clamp(d / 20.0, 0.0, 1.0) * turn;
+    c.object[f] = TurnedRectMask(320, 240, 100, 100, 220, 160, kept);
+  }
+  const PersistenceSummary& p = c.Analyse().persistence;
+  ASSERT_TRUE(p.released);
+  EXPECT_GT(p.persistent_ratio, 1.0) << "the whole turn stays; the loaded mean includes the ramp";
+  EXPECT_LT(p.shape_persistent_ratio, 0.1);
+  EXPECT_LT(p.released_late_rigid_xor_px, 0.05 * p.released_late_xor_px);
+
+  // A dent is a shape error: it stays when the mesh is laid rigidly onto the
+  // object.
+  const PersistenceSummary dent = DentCase(true, 0.0).Analyse().persistence;
+  EXPECT_GT(dent.shape_persistent_ratio, 0.8);
 }
 
 TEST(ResidualAnalyser, ViscoelasticDentFadesWithItsTimeConstant) {

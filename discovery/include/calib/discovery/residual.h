@@ -50,6 +50,7 @@
 #include "calib/discovery/signals.h"
 #include "calib/evaluator/bit_mask.h"
 #include "calib/evaluator/mask_geometry.h"
+#include "calib/evaluator/rasterizer.h"
 #include "calib/evaluator/scoring.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -92,6 +93,11 @@ struct ResidualOptions {
   bool IsValid(std::string* error) const;
 };
 
+/// The turns of the mesh ResidualFrame::rigid_xor_px searches: within
+/// +-kRigidTurnSearchDeg, every 2 degrees, then half degrees around the
+/// best.
+inline constexpr double kRigidTurnSearchDeg = 20.0;
+
 /// What one frame's residual looks like.
 struct ResidualFrame {
   int frame = 0;
@@ -105,6 +111,13 @@ struct ResidualFrame {
   /// XOR after shifting the mesh mask by the rounded centroid offset: the
   /// part of the error that a translation cannot remove ("shape error").
   int64_t aligned_xor_px = 0;
+  /// XOR after the rigid motion that lays the mesh best onto the object
+  /// (centroid onto centroid, then the best turn about it within
+  /// +-kRigidTurnSearchDeg): the part of the error no change of pose
+  /// removes, the shape's own. A pose left wrong (the body turned or slid
+  /// otherwise than the object) is not in it.
+  int64_t rigid_xor_px = 0;
+  double rigid_turn_rad = 0.0;  ///< that turn of the mesh (counterclockwise in the image > 0)
   Vec2 object_centroid_px{NAN, NAN};
   Vec2 mesh_centroid_px{NAN, NAN};
   Vec2 offset_px{NAN, NAN};  ///< mesh centroid - object centroid
@@ -245,6 +258,13 @@ struct PersistenceSummary {
   /// of the loaded residual that stays (NaN without a before phase the
   /// floor is 0).
   double persistent_ratio = NAN;
+  /// The same over the rigidly aligned XOR (ResidualFrame::rigid_xor_px):
+  /// the share of the loaded shape error that stays once the load is gone,
+  /// a pose left wrong not counted.
+  double before_rigid_xor_px = NAN;
+  double loaded_rigid_xor_px = NAN;
+  double released_late_rigid_xor_px = NAN;
+  double shape_persistent_ratio = NAN;
   /// (early released - late released) / (loaded - before), >= 0: the share
   /// that fades after release.
   double fading_ratio = NAN;
@@ -494,6 +514,11 @@ class ResidualAnalyser {
   };
   void MapResidualToRest(std::span<const Vec2> positions, const BitMask& mesh_mask, int frame);
   void AccumulateRestPixel(const Vec2& rest, bool missed, LoadPhase phase);
+  // The XOR of the object with the mesh at `positions` moved by the rigid
+  // motion that lays it best onto the object (ResidualFrame::rigid_xor_px),
+  // and that motion's turn.
+  std::pair<int64_t, double> RigidXor(std::span<const Vec2> positions, const BitMask& object,
+                                      const Vec2& mesh_centroid, const Vec2& object_centroid);
   Vec2 NearestBoundaryRestPoint(std::span<const Vec2> positions, const Vec2& p) const;
 
   // Known before the pass (shared; mesh_, scene_, object_masks_ and
@@ -512,6 +537,10 @@ class ResidualAnalyser {
   double dipole_weight_ = 0.0;
   BitMask claimed_;
   BitMask previous_mesh_;
+  // Scratch of the rigid alignment.
+  Rasterizer rasterizer_;
+  BitMask moved_mask_;
+  std::vector<Vec2> moved_;
 };
 
 /// Evaluates `params` (the base model) on `prepared` and analyses the
