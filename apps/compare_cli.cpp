@@ -23,6 +23,7 @@ struct CompareCli {
   std::string cache_dir;
   bool no_cache = false;
   bool status = false;
+  std::filesystem::path base_dir;
 };
 
 std::shared_ptr<CompareCli> AddCompareSubcommand(CLI::App& app) {
@@ -40,6 +41,9 @@ std::shared_ptr<CompareCli> AddCompareSubcommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   AddProgressAndCacheOptions(cmd, &cli->progress, &cli->progress_interval_s, &cli->cache_dir,
                              &cli->no_cache);
+  cmd->add_option("--base-dir", cli->base_dir,
+                  "resolve the spec's relative paths (recordings) against this folder instead of "
+                  "the spec's own");
   cmd->add_flag("--status", cli->status,
                 "print where each run stands (finished, running, interrupted, not started) and "
                 "run nothing");
@@ -48,7 +52,7 @@ std::shared_ptr<CompareCli> AddCompareSubcommand(CLI::App& app) {
 
 std::optional<int> RunChosenCompareSubcommand(CompareCli& cli, int argc, char** argv) {
   if (!*cli.command) return std::nullopt;
-  const ComparisonSpec spec = LoadComparisonSpec(cli.spec, cli.out);
+  const ComparisonSpec spec = LoadComparisonSpec(cli.spec, cli.out, {}, cli.base_dir);
   if (cli.status) {
     fmt::print("{}", ComparisonStatusText(spec));
     return 0;

@@ -42,7 +42,7 @@ fi
 # The tests that start MPI jobs (with the tests that are not gtest cases:
 # the scripts' and the command line's, run by ctest), each program's with
 # the allocation stacks unwound the slow way (below).
-mpi_tests='JobCli.ThreeMpiRanks*:Service.AJobOnMpiHosts*'
+mpi_tests='JobCli.ThreeMpiRanks*:Service.AJobOnMpiHosts*:ServiceKinds.AComparisonOnMpiHosts*'
 
 bash scripts/install-deps.sh
 jobs="$(nproc)"
@@ -106,6 +106,7 @@ case "$kind" in
     while (($(jobs -rp | wc -l) > 0)); do wait -n || status=1; done
     run jobs_job_cli_test "$mpi_tests" 0 jobs_job_cli_test.mpi || status=1
     run service_test "$mpi_tests" 0 service_test.mpi || status=1
+    run service_kinds_test "$mpi_tests" 0 service_kinds_test.mpi || status=1
     if [[ "$filter" == "*" ]]; then
       # The command line's and the scripts' tests (not gtest cases).
       exclude='^$'

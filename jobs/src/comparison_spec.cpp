@@ -215,9 +215,11 @@ ComparisonSpec ParseComparisonSpec(const std::string& text, const std::string& s
 
 ComparisonSpec LoadComparisonSpec(const std::filesystem::path& path,
                                   const std::filesystem::path& out_dir,
-                                  const JobSpecParseOptions& options) {
+                                  const JobSpecParseOptions& options,
+                                  const std::filesystem::path& base_dir) {
   const std::string text = spec_reader::ReadSpecFile(path, "comparison spec");
-  const std::filesystem::path base = std::filesystem::absolute(path).parent_path();
+  const std::filesystem::path base =
+      base_dir.empty() ? std::filesystem::absolute(path).parent_path() : std::filesystem::absolute(base_dir);
   return ParseComparisonSpec(text, path.string(), base, out_dir, options);
 }
 

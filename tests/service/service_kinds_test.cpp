@@ -10,7 +10,7 @@
 //    the server);
 //  - a comparison submitted through `calib submit --kind comparison` gives
 //    the runs and the report files of `calib compare-optimizers` of the same
-//    spec;
+//    spec, on the server's threads and, with --mpi-hosts, over MPI ranks;
 //  - a bad loop or comparison spec gets a 400 naming the field, one reading
 //    outside the data roots or running an external optimiser a 403.
 
@@ -28,6 +28,7 @@
 
 #include <signal.h>
 
+#include <cstdlib>
 #include <fstream>
 
 namespace calib {
@@ -104,15 +105,45 @@ void ExpectTheReferenceLoop(const Server& server, const std::string& name, const
   ExpectSameStores(reference / "store.sqlite", server.folder(name) / "store.sqlite");
 }
 
-TEST(ServiceKinds, AComparisonSubmittedThroughCalibSubmitGivesTheRunsAndReportOfCalibCompareOptimizers) {
-  const fs::path dir = testing::ScratchDir("service_comparison");
+// The comparison "tiny" of the server, done, has the runs and the report
+// files of `calib compare-optimizers` in `cli` (the same spec).
+void ExpectTheReferenceComparison(const Server& server, const fs::path& cli) {
+  const json done = server.WaitDone("tiny", 120);
+  ASSERT_FALSE(done.is_null());
+  EXPECT_EQ(done["status"], "finished") << done.dump(1);
+  EXPECT_EQ(done["budget"], 8);
+  EXPECT_EQ(done["evaluations"], 8);
+  EXPECT_EQ(done["progress"]["runs"], 2);
+  EXPECT_EQ(done["progress"]["jobs_finished"], 2);
+  EXPECT_EQ(done["report"], "report.html");
+  ExpectSameStores(cli / "comparison.sqlite", server.folder("tiny") / "comparison.sqlite");
+  for (const char* file : {"runs.csv", "convergence.csv", "fixed_budget.csv", "fixed_target.csv", "pairwise.csv"}) {
+    EXPECT_EQ(testing::ReadText(server.folder("tiny") / file), testing::ReadText(cli / file)) << file;
+    httplib::Client client = server.Client();
+    const httplib::Result served = client.Get(fmt::format("/api/v1/jobs/tiny/artefacts/{}", file).c_str());
+    ASSERT_TRUE(served);
+    EXPECT_EQ(served->body, testing::ReadText(cli / file)) << file;
+  }
+  const json listed = server.Get("/api/v1/jobs");
+  ASSERT_EQ(listed["jobs"].size(), 1u);
+  EXPECT_EQ(listed["jobs"][0]["kind"], "comparison");
+}
+
+// `calib compare-optimizers` of the tiny comparison into `dir`/cli.
+fs::path CliComparison(const fs::path& dir) {
   const fs::path spec = dir / "tiny.yaml";
   std::ofstream(spec) << ComparisonYaml("tiny", (kExamples / "push_centre").string());
   const testing::ProcessResult cli = testing::RunProcess(
       {kCalib, "compare-optimizers", spec.string(), "--out", (dir / "cli").string(), "--threads", "1",
        "--progress", "none"},
       dir);
-  ASSERT_EQ(cli.exit_code, 0) << cli.err;
+  EXPECT_EQ(cli.exit_code, 0) << cli.err;
+  return dir / "cli";
+}
+
+TEST(ServiceKinds, AComparisonSubmittedThroughCalibSubmitGivesTheRunsAndReportOfCalibCompareOptimizers) {
+  const fs::path dir = testing::ScratchDir("service_comparison");
+  const fs::path cli = CliComparison(dir);
 
   Server server(dir / "state", dir / "logs");
   ASSERT_GT(server.port(), 0);
@@ -126,25 +157,32 @@ TEST(ServiceKinds, AComparisonSubmittedThroughCalibSubmitGivesTheRunsAndReportOf
   EXPECT_CONTAINS(submitted.out, "comparison: tiny\nstate: done\nstatus: finished");
   EXPECT_CONTAINS(submitted.out, "evaluations: 8/8");
   EXPECT_CONTAINS(submitted.out, "report: report.html");
-  const json done = server.WaitDone("tiny", 120);
-  ASSERT_FALSE(done.is_null());
-  EXPECT_EQ(done["status"], "finished") << done.dump(1);
-  EXPECT_EQ(done["budget"], 8);
-  EXPECT_EQ(done["evaluations"], 8);
-  EXPECT_EQ(done["progress"]["runs"], 2);
-  EXPECT_EQ(done["progress"]["jobs_finished"], 2);
-  EXPECT_EQ(done["report"], "report.html");
-  ExpectSameStores(dir / "cli" / "comparison.sqlite", server.folder("tiny") / "comparison.sqlite");
-  for (const char* file : {"runs.csv", "convergence.csv", "fixed_budget.csv", "fixed_target.csv", "pairwise.csv"}) {
-    EXPECT_EQ(testing::ReadText(server.folder("tiny") / file), testing::ReadText(dir / "cli" / file)) << file;
-    httplib::Client client = server.Client();
-    const httplib::Result served = client.Get(fmt::format("/api/v1/jobs/tiny/artefacts/{}", file).c_str());
-    ASSERT_TRUE(served);
-    EXPECT_EQ(served->body, testing::ReadText(dir / "cli" / file)) << file;
-  }
-  const json listed = server.Get("/api/v1/jobs");
-  ASSERT_EQ(listed["jobs"].size(), 1u);
-  EXPECT_EQ(listed["jobs"][0]["kind"], "comparison");
+  ExpectTheReferenceComparison(server, cli);
+}
+
+// On a server with --mpi-hosts a comparison runs through the launcher
+// (calib-mpirun.sh --compare, every run over the ranks): the same runs and
+// report.
+TEST(ServiceKinds, AComparisonOnMpiHostsGivesTheRunsAndReportOfCalibCompareOptimizers) {
+  const std::string mpiexec = CALIB_MPIEXEC;
+  if (mpiexec.empty()) GTEST_SKIP() << "no MPI launcher in this build";
+  ::setenv("MPIRUN", mpiexec.c_str(), 1);
+  const fs::path dir = testing::ScratchDir("service_comparison_mpi");
+  const fs::path cli = CliComparison(dir);
+  Server server(dir / "state", dir / "logs",
+                {"--mpi-hosts", "localhost:3", "--mpi-launcher",
+                 (fs::path(CALIB_SOURCE_DIR) / "scripts" / "calib-mpirun.sh").string(), "--mpirun-args",
+                 "--allow-run-as-root --oversubscribe --bind-to none --mca btl self,vader "
+                 "--mca btl_vader_single_copy_mechanism none"});
+  ASSERT_GT(server.port(), 0);
+  std::ofstream(dir / "submitted.yaml") << ComparisonYaml("tiny", "push_centre");
+  const testing::ProcessResult submitted = server.RunClient(
+      {"submit", "--kind", "comparison", (dir / "submitted.yaml").string()}, dir / "logs");
+  EXPECT_EQ(submitted.exit_code, 0) << submitted.out << submitted.err;
+  ExpectTheReferenceComparison(server, cli);
+  const std::string log = testing::ReadText(dir / "state" / "mpi" / "tiny.log");
+  EXPECT_CONTAINS(log, "calib compare-optimizers on localhost:3 (3 ranks)");
+  EXPECT_CONTAINS(log, "MPI: manager and 2 worker ranks");
 }
 
 TEST(ServiceKinds, ALoopOverHttpCancelledResumedAndKilledMidwayDecidesAsCalibLoop) {

@@ -24,12 +24,13 @@ constexpr auto kPoll = std::chrono::milliseconds(100);
 
 int RunOnMpiHosts(const ServiceOptions& options, const std::filesystem::path& spec_file,
                   const std::vector<std::string>& calib_args, const std::filesystem::path& log_file,
-                  const std::function<bool()>& interrupted) {
+                  const std::function<bool()>& interrupted, bool comparison) {
   std::vector<std::string> args = {options.mpi_launcher.string(), "--hosts", options.mpi_hosts};
   if (!options.mpirun_args.empty()) {
     args.push_back("--mpirun-args");
     args.push_back(options.mpirun_args);
   }
+  if (comparison) args.push_back("--compare");
   args.push_back("--");
   args.push_back(spec_file.string());
   args.insert(args.end(), calib_args.begin(), calib_args.end());

@@ -20,13 +20,14 @@
 
 namespace calib::service {
 
-/// Runs `calib_args` (after the spec) of the job spec `spec_file` through the
-/// launcher; its output goes to `log_file`. Returns the launcher's exit
+/// Runs `calib_args` (after the spec) of the job spec `spec_file` (with
+/// `comparison`, the optimiser comparison spec: the launcher's --compare)
+/// through the launcher; its output goes to `log_file`. Returns the launcher's exit
 /// status (0 finished, 3 aborted by the failure policy, 4 stopped
 /// resumably); throws std::runtime_error naming the launcher and the log for
 /// any other, or when it cannot be started.
 int RunOnMpiHosts(const ServiceOptions& options, const std::filesystem::path& spec_file,
                   const std::vector<std::string>& calib_args, const std::filesystem::path& log_file,
-                  const std::function<bool()>& interrupted);
+                  const std::function<bool()>& interrupted, bool comparison = false);
 
 }  // namespace calib::service

@@ -141,15 +141,16 @@ WorkOutcome StoredOutcome(const ServiceOptions& options, const std::string& name
 }
 
 // A manager started by an earlier server (killed; its launcher then told to
-// stop) may hold the job a moment longer: wait until it has stopped, as
-// calib-mpirun.sh waits before it resumes.
-void WaitForRelease(const ServiceOptions& options, const std::string& name,
+// stop) may hold the job of `store` a moment longer: wait until it has
+// stopped, as calib-mpirun.sh waits before it resumes.
+void WaitForRelease(const fs::path& store_path, const std::string& name,
                     const std::function<bool()>& interrupted) {
+  if (!fs::exists(store_path)) return;
   const JobLockOptions lock;
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::duration<double>(lock.stale_after_s + lock.heartbeat_s);
   while (std::chrono::steady_clock::now() < deadline && !interrupted()) {
-    ResultStore store(options.store());
+    ResultStore store(store_path);
     const std::optional<JobInfo> job = store.FindJob(name);
     if (!job) return;
     const std::optional<JobLock> holder = store.JobLockHolder(job->id);
@@ -177,7 +178,7 @@ WorkOutcome RunJobOnMpiHosts(const JobSpec& spec, const ServiceOptions& options,
   std::vector<std::string> args = {"--progress", "log", "--progress-interval", "10"};
   if (!options.write_report) args.push_back("--no-report");
   if (!options.report_video) args.push_back("--no-video");
-  WaitForRelease(options, spec.name, interrupted);
+  WaitForRelease(options.store(), spec.name, interrupted);
   const int code = RunOnMpiHosts(options, spec_file, args, folder / (spec.name + ".log"), interrupted);
   WorkOutcome outcome = StoredOutcome(options, spec.name);
   outcome.stopped = code == 4;
@@ -234,11 +235,38 @@ WorkOutcome RunLoopEntry(const QueueEntry& entry, const ServiceOptions& options,
   }
 }
 
+// As `scripts/calib-mpirun.sh --hosts HOSTS --compare SPEC --out FOLDER
+// --base-dir DATA_ROOT`: the submitted text written to
+// <state_dir>/mpi/<name>.yaml (its recordings relative to the first data
+// root, as the server reads them), the launcher's output beside it (.log).
+WorkOutcome RunComparisonOnMpiHosts(const QueueEntry& entry, const ComparisonSpec& spec,
+                                    const ServiceOptions& options,
+                                    const std::function<bool()>& interrupted) {
+  const fs::path folder = options.state_dir / "mpi";
+  fs::create_directories(folder);
+  const fs::path spec_file = fs::absolute(folder / (entry.name + ".yaml"));
+  {
+    std::ofstream out(spec_file);
+    out << entry.spec.at("text").get<std::string>();
+    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", spec_file.string()));
+  }
+  for (const ComparisonRun& run : spec.runs) WaitForRelease(spec.store, run.job.name, interrupted);
+  const std::vector<std::string> args = {"--out", fs::absolute(spec.out_dir).string(), "--base-dir",
+                                         fs::absolute(options.data_roots.front()).string(),
+                                         "--progress", "log", "--progress-interval", "10"};
+  const int code = RunOnMpiHosts(options, spec_file, args, folder / (entry.name + ".log"), interrupted,
+                                 /*comparison=*/true);
+  if (code == 4) return {true, "stopped"};
+  const ComparisonAnalysis analysis = AnalyseComparison(LoadComparisonRuns(spec), AnalysisOptions(spec));
+  return {false, fmt::format("finished: {}", analysis.verdict)};
+}
+
 // As `calib compare-optimizers SPEC --out FOLDER` (run again: continued).
 WorkOutcome RunComparisonEntry(const QueueEntry& entry, const ServiceOptions& options,
                                const std::function<bool()>& interrupted) {
   const ComparisonSpec spec = ReadComparisonSpec(entry.spec.at("text").get<std::string>(), options,
                                                  WorkFolder(options, entry.name), RecordingCheck::kExists);
+  if (!options.mpi_hosts.empty()) return RunComparisonOnMpiHosts(entry, spec, options, interrupted);
   ComparisonOptions run;
   run.threads = options.threads_per_job;
   run.progress = ProgressMode::kNone;

@@ -74,11 +74,12 @@ inline const std::filesystem::path kDefaultComparisonRoot = "out/compare";
 /// Reads and validates a comparison spec; the runs' results go to
 /// `out_dir` (the store `out_dir/comparison.sqlite`), or when it is empty to
 /// kDefaultComparisonRoot/<name>/ (ComparisonSpec::out_dir says which).
-/// Relative paths in the spec are resolved against its folder. `options` as
-/// for job specs.
+/// Relative paths in the spec are resolved against its folder, or against
+/// `base_dir` when it is not empty. `options` as for job specs.
 ComparisonSpec LoadComparisonSpec(const std::filesystem::path& path,
                                   const std::filesystem::path& out_dir,
-                                  const JobSpecParseOptions& options = {});
+                                  const JobSpecParseOptions& options = {},
+                                  const std::filesystem::path& base_dir = {});
 
 /// The same from YAML (or JSON) text; `source` names it in messages.
 ComparisonSpec ParseComparisonSpec(const std::string& text, const std::string& source,
