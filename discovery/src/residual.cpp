@@ -637,16 +637,14 @@ void ResidualAnalyser::AddFrame(int frame, std::span<const Vec2> positions,
                          ? AxisAngleDifference(mm.angle_rad, om.angle_rad)
                          : NAN;
   if (r.offset_px.allFinite()) {
-    // Shift the mesh back onto the object.
+    // Shift the mesh back onto the object; then lay it on rigidly.
     r.aligned_xor_px = CountXorShifted(object, mesh_mask, -static_cast<int>(std::lround(r.offset_px.x())),
                                        -static_cast<int>(std::lround(r.offset_px.y())));
-  } else {
-    r.aligned_xor_px = px(score.xor_px);
-  }
-  r.rigid_xor_px = r.aligned_xor_px;
-  if (r.offset_px.allFinite() && mm.area_px > 0.0) {
     std::tie(r.rigid_xor_px, r.rigid_turn_rad) =
         RigidXor(positions, object, mm.centroid_px, om.centroid_px);
+  } else {
+    r.aligned_xor_px = px(score.xor_px);
+    r.rigid_xor_px = r.aligned_xor_px;
   }
   r.force_n = facts_->force_n[frame];
   r.object_deformation = facts_->object_deformation[frame];

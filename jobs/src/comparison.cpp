@@ -50,7 +50,6 @@ class NextRunAnnouncer {
   NextRunAnnouncer(const NextRunAnnouncer&) = delete;
   NextRunAnnouncer& operator=(const NextRunAnnouncer&) = delete;
 
-  bool active() const { return size_ > 1; }
   void Announce(int32_t index) {
     if (size_ <= 1 || finished_) return;
     SendNextJob(size_, index);
