@@ -70,6 +70,24 @@ optimizers: [{name: random}, {name: cmaes, settings: {population: 3}}]
 seeds: 1
 `;
 
+// Submits `yaml` as `kind` through the form and waits for the page to say
+// it is queued; a refusal fails with the page's message.
+async function submitThroughForm(page, kind, name, yaml) {
+  await page.select("#kind", kind);
+  await page.$eval("#spec", (e, v) => { e.value = v; }, yaml);
+  await page.$eval("#submit-result", (e) => { e.textContent = ""; });
+  await page.click("#submit-form button");
+  const said = async () => page.$eval("#submit-result", (e) => e.textContent);
+  const deadline = Date.now() + 30000;
+  while (!(await said())) {
+    if (Date.now() > deadline) fail(`submitting ${kind} ${name}: the page said nothing after 30 s`);
+    await new Promise((r) => setTimeout(r, 100));
+  }
+  const text = await said();
+  check(text.startsWith(`queued: ${kind} ${name}`), `submitting ${kind} ${name}: the page said '${text}'`);
+  await page.waitForSelector(`tr.job[data-name="${name}"]`, { timeout: 10000 });
+}
+
 async function main() {
   const state = fs.mkdtempSync(path.join(os.tmpdir(), "calib_dashboard_"));
   const server = spawn(process.env.CALIB_EXE, [
@@ -115,9 +133,7 @@ async function main() {
     await waitFor("the bad spec's message", async () =>
       (await page.$eval("#submit-result", (e) => e.textContent)).includes("budget.evaluations = '0'"), 10000);
 
-    await page.$eval("#spec", (e, v) => { e.value = v; }, jobYaml("from_dashboard", kBudget));
-    await page.click("#submit-form button");
-    await page.waitForSelector('tr.job[data-name="from_dashboard"]', { timeout: 10000 });
+    await submitThroughForm(page, "job", "from_dashboard", jobYaml("from_dashboard", kBudget));
     await page.click('tr.job[data-name="from_dashboard"]');
     const points = async () => Number(await page.$eval("#chart", (e) => e.dataset.points || 0));
     const first = await waitFor("the plot's first points", async () => {
@@ -137,11 +153,8 @@ async function main() {
     const grown = await points();
 
     // A comparison: its kind in the table, its report embedded once done.
-    await page.select("#kind", "comparison");
-    await page.$eval("#spec", (e, v) => { e.value = v; }, comparisonYaml("compared_in_dashboard"));
-    await page.click("#submit-form button");
+    await submitThroughForm(page, "comparison", "compared_in_dashboard", comparisonYaml("compared_in_dashboard"));
     const row = 'tr.job[data-name="compared_in_dashboard"]';
-    await page.waitForSelector(row, { timeout: 10000 });
     check((await page.$eval(`${row} td:nth-child(2)`, (e) => e.textContent)) === "comparison",
           "the table does not show the comparison's kind");
     await page.click(row);

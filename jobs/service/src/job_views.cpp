@@ -58,13 +58,21 @@ void AddOwnStoreView(const ServiceOptions& options, const QueueEntry& entry, nlo
   if (started) {
     const ResultStore& store = *own;
     int64_t evaluations = 0, failed = 0, pruned = 0, finished = 0;
-    const std::vector<JobInfo> jobs = store.Jobs();
-    for (const JobInfo& job : jobs) {
-      const JobSummary summary = store.Summary(job.id);
-      evaluations += summary.evaluations;
-      failed += summary.failed;
-      pruned += summary.pruned;
-      if (job.status == JobStatus::kFinished || job.status == JobStatus::kAborted) ++finished;
+    std::vector<JobInfo> jobs;
+    try {
+      jobs = store.Jobs();
+      for (const JobInfo& job : jobs) {
+        const JobSummary summary = store.Summary(job.id);
+        evaluations += summary.evaluations;
+        failed += summary.failed;
+        pruned += summary.pruned;
+        if (job.status == JobStatus::kFinished || job.status == JobStatus::kAborted) ++finished;
+      }
+    } catch (const StoreError&) {
+      // Its tables being made at this moment: no progress yet, and the list
+      // of every job still answers.
+      jobs.clear();
+      evaluations = failed = pruned = finished = 0;
     }
     v["evaluations"] = evaluations;
     v["failed"] = failed;
