@@ -151,6 +151,7 @@ BenchmarkAggregate AggregateOutcomes(const std::vector<ObjectOutcome>& outcomes,
   SortByEffectAndMagnitude(a.holdout_change, effects);
   a.run_time_s = QuartilesOf(run_times);
   a.max_sensitivity_relative = QuartilesOf(sensitivities);
+  a.confidence_rates = CountConfidenceRates(outcomes);
   return a;
 }
 
@@ -197,6 +198,7 @@ json ToJson(const BenchmarkAggregate& a) {
   j["run_time_s"] = ToJson(a.run_time_s);
   j["run_time_s"]["total"] = a.total_run_time_s;
   j["max_sensitivity_relative"] = ToJson(a.max_sensitivity_relative);
+  j["confidence_rates"] = ToJson(a.confidence_rates)["bins"];
   return j;
 }
 

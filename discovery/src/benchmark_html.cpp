@@ -212,6 +212,29 @@ HtmlReportSummary WriteBenchmarkHtml(const std::filesystem::path& html_path,
   }
   h << "</table>\n";
 
+  h << "<h2>Confidences as rates</h2>\n<p>The first round's hypotheses by confidence: how many "
+       "named the effect the object has (on the tuning family these are the rates the loop "
+       "states its confidences with; DIR/confidence_rates.json).</p>\n<table>\n"
+       "<tr><th>confidence</th><th>right / hypotheses</th><th>rate</th><th>95 % interval "
+       "(Wilson)</th></tr>\n";
+  for (const ConfidenceBin& b : a.confidence_rates.bins) {
+    h << "<tr><td>" << Num(b.from, 2) << "&ndash;" << Num(b.to, 2) << "</td>" << RateCells(b.right)
+      << "</tr>\n";
+  }
+  h << "</table>\n<p>Per effect: right / hypotheses in each bin.</p>\n<table>\n<tr><th>effect</th>";
+  for (const ConfidenceBin& b : a.confidence_rates.bins) {
+    h << "<th>" << Num(b.from, 2) << "&ndash;" << Num(b.to, 2) << "</th>";
+  }
+  h << "</tr>\n";
+  for (const EffectConfidenceBins& e : a.confidence_rates.effects) {
+    h << "<tr><td>" << Escape(e.effect) << "</td>";
+    for (const ConfidenceBin& b : e.bins) {
+      h << "<td class=\"n\">" << b.right.successes << " / " << b.right.trials << "</td>";
+    }
+    h << "</tr>\n";
+  }
+  h << "</table>\n";
+
   h << "<h2>Sensitivity</h2>\n<p>Per object the larger of the base and the final model's 0.1 % "
        "nudge sensitivity relative to its held-out XOR sum: median "
     << Share(a.max_sensitivity_relative.median) << ", max " << Share(a.max_sensitivity_relative.max)

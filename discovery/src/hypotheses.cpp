@@ -12,6 +12,8 @@
 
 #include "calib/discovery/hypotheses.h"
 
+#include "calib/discovery/confidence_rates.h"
+
 #include "calib/evaluator/json_number.h"
 
 #include <fmt/format.h>
@@ -602,6 +604,8 @@ std::string HypothesesReport(const std::vector<Hypothesis>& hypotheses) {
   int rank = 1;
   for (const Hypothesis& h : hypotheses) {
     s += fmt::format("{}. {:<18} confidence {:.2f}: {}\n", rank++, h.effect, h.confidence, h.summary);
+    const std::string rate = RateText(TuningFamilyConfidenceRates(), h.effect, h.confidence);
+    if (!rate.empty()) s += fmt::format("     ({})\n", rate);
     // The two strongest pieces of evidence.
     std::vector<const Evidence*> top;
     for (const Evidence& e : h.evidence) top.push_back(&e);
@@ -622,9 +626,24 @@ json ToJson(const Hypothesis& h) {
                         {"support", JsonNumber(e.support)},
                         {"statement", e.statement}});
   }
-  return {{"effect", h.effect},         {"confidence", JsonNumber(h.confidence)},
-          {"applicability", JsonNumber(h.applicability)}, {"summary", h.summary},
-          {"evidence", evidence},       {"recordings", h.recordings}};
+  json doc = {{"effect", h.effect},         {"confidence", JsonNumber(h.confidence)},
+              {"applicability", JsonNumber(h.applicability)}, {"summary", h.summary},
+              {"evidence", evidence},       {"recordings", h.recordings}};
+  // What the confidence meant on the tuning family (derived; not read back).
+  const ConfidenceRates& rates = TuningFamilyConfidenceRates();
+  if (const ConfidenceBin* all = rates.Find(h.confidence)) {
+    const auto rate = [](const ConfidenceBin* bin) -> json {
+      if (bin == nullptr) return nullptr;
+      return {{"right", bin->right.successes},    {"hypotheses", bin->right.trials},
+              {"rate", JsonNumber(bin->right.rate)}, {"lower", JsonNumber(bin->right.lower)},
+              {"upper", JsonNumber(bin->right.upper)}};
+    };
+    doc["tuning_family_rate"] = {{"from", all->from},
+                                 {"to", all->to},
+                                 {"effect", rate(rates.Find(h.effect, h.confidence))},
+                                 {"all", rate(all)}};
+  }
+  return doc;
 }
 
 Hypothesis HypothesisFromJson(const json& doc) {

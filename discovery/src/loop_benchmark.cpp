@@ -210,6 +210,13 @@ LoopBenchmarkResult RunLoopBenchmark(const LoopBenchmarkOptions& options, const 
   result.csv = options.out_dir / "benchmark.csv";
   WriteBenchmarkJson(result.json, report);
   WriteBenchmarkCsv(result.csv, report.outcomes);
+  ConfidenceRates rates = report.aggregate.confidence_rates;
+  rates.family = report.family_name;
+  rates.family_spec = report.family_spec;
+  rates.family_seed = report.family_seed;
+  rates.command = report.command;
+  result.confidence_rates = options.out_dir / "confidence_rates.json";
+  json_io::WriteFile(result.confidence_rates, ToJson(rates));
   if (options.write_html) {
     result.html = options.out_dir / "benchmark.html";
     WriteBenchmarkHtml(result.html, report, options.html);

@@ -2,6 +2,7 @@
 
 #include "calib/discovery/report_html.h"
 
+#include "calib/discovery/confidence_rates.h"
 #include "calib/results/html_page.h"
 
 #include <fmt/format.h>
@@ -191,6 +192,24 @@ std::string SummaryBarsScript(const LoopReport& report) {
          "'' using 3 title 'after (final model)' lc rgb '#2471a3'\n";
 }
 
+// "5 / 9 = 0.56 [0.27, 0.81]", or "none".
+std::string RateOf(const ConfidenceBin* bin) {
+  if (bin == nullptr || bin->right.trials == 0) return "none";
+  const Proportion& p = bin->right;
+  return fmt::format("{} / {} = {:.2f} [{:.2f}, {:.2f}]", p.successes, p.trials, p.rate, p.lower,
+                     p.upper);
+}
+
+// How often a first-round hypothesis of this effect, and of any effect, at
+// this confidence was right on the tuning family.
+std::string RateCell(const std::string& effect, double confidence) {
+  const ConfidenceRates& rates = TuningFamilyConfidenceRates();
+  const ConfidenceBin* all = rates.Find(confidence);
+  if (all == nullptr) return "&ndash;";
+  return fmt::format("{}: {}<br>any effect: {}<br>(at {:.2f}&ndash;{:.2f})", Escape(effect),
+                     RateOf(rates.Find(effect, confidence)), RateOf(all), all->from, all->to);
+}
+
 std::string Params(const ParameterValues& values) {
   std::string s;
   for (const auto& [name, v] : values) {
@@ -304,13 +323,14 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
   h << "<h2>Hypotheses</h2>\n";
   for (const HypothesisRound& round : report.rounds) {
     h << "<h3>Round " << round.round << ": traced from the residual of " << Escape(round.stage)
-      << "</h3>\n<table>\n<tr><th>rank</th><th>effect</th><th>confidence</th><th>signature</th>"
-         "<th>evidence</th></tr>\n";
+      << "</h3>\n<table>\n<tr><th>rank</th><th>effect</th><th>confidence</th><th>right at that "
+         "confidence on the tuning family</th><th>signature</th><th>evidence</th></tr>\n";
     int rank = 1;
     for (const Hypothesis& hyp : round.hypotheses) {
       h << "<tr><td class=\"n\">" << rank++ << "</td><td>" << Escape(hyp.effect)
         << "</td><td class=\"n\">" << Num(hyp.confidence, 2) << "</td><td>"
-        << Escape(hyp.summary) << "</td><td><ul class=\"evidence\">";
+        << RateCell(hyp.effect, hyp.confidence) << "</td><td>" << Escape(hyp.summary)
+        << "</td><td><ul class=\"evidence\">";
       for (const Evidence& e : hyp.evidence) {
         h << "<li>[" << Num(e.support, 2) << "] " << Escape(e.statement) << "</li>";
       }

@@ -401,6 +401,10 @@ TEST(LoopBenchmarkHtml, ShowsTheRatesAndLinksEveryObject) {
     EXPECT_NE(page.find("href=\"objects/" + o.id + "/report.html\""), std::string::npos) << o.id;
   }
   EXPECT_NE(page.find("a message, with &quot;quotes&quot;"), std::string::npos);
+  // The first round's confidences as rates: pc0 traced plasticity (its
+  // effect) at 0.75 and table friction at 1/3.
+  EXPECT_NE(page.find("<td>0.75&ndash;1.00</td><td class=\"n\">1 / 1</td>"), std::string::npos);
+  EXPECT_NE(page.find("<td>0.25&ndash;0.50</td><td class=\"n\">0 / 1</td>"), std::string::npos);
 
   options.gnuplot.executable = "gnuplot";
   std::string message;
@@ -497,6 +501,10 @@ TEST(LoopBenchmark, RunsEveryObjectAndWritesItsSummaryAndTheOutputs) {
   EXPECT_TRUE(fs::exists(result.json));
   EXPECT_TRUE(fs::exists(result.csv));
   EXPECT_TRUE(fs::exists(result.html));
+  const ConfidenceRates rates = ConfidenceRatesFromJson(
+      json::parse(testing::ReadText(result.confidence_rates)), result.confidence_rates.string());
+  EXPECT_EQ(rates.family, "fam");
+  EXPECT_EQ(ToJson(rates)["bins"], ToJson(result.report.aggregate.confidence_rates)["bins"]);
   const BenchmarkAggregate& a = result.report.aggregate;
   ExpectRate(a.detection.at(0).detected, 2, 2, "plasticity");
   ExpectRate(a.false_discoveries, 0, 3, "false discoveries");

@@ -14,11 +14,13 @@
 //   grouped by (effect kept, the object's magnitude, or "not present" when
 //   the object does not have that effect);
 // - run time per object, and the largest 0.1 % nudge sensitivity relative
-//   to the held-out error per object.
+//   to the held-out error per object;
+// - the first round's confidences as rates (confidence_rates.h).
 // Every proportion carries its 95 % Wilson score interval.
 
 #include "calib/discovery/benchmark_outcome.h"
 #include "calib/discovery/benchmark_stats.h"
+#include "calib/discovery/confidence_rates.h"
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -68,6 +70,7 @@ struct BenchmarkAggregate {
   Quartiles run_time_s;  ///< per object
   double total_run_time_s = 0.0;
   Quartiles max_sensitivity_relative;  ///< ObjectOutcome::MaxSensitivityRelative per object
+  ConfidenceRates confidence_rates;    ///< CountConfidenceRates (no provenance)
 };
 
 /// The rates over `outcomes`; `effects` orders the effects (TracedEffects()).

@@ -8,8 +8,10 @@
 //
 // Per object the loop writes DIR/objects/<id>/ (report.json, report.html,
 // store.sqlite) and the benchmark DIR/objects/<id>/summary.json as soon as
-// it finishes; at the end DIR/benchmark.json, DIR/benchmark.csv and
-// DIR/benchmark.html. Resumable: an object whose report.json was made by
+// it finishes; at the end DIR/benchmark.json, DIR/benchmark.csv,
+// DIR/benchmark.html and DIR/confidence_rates.json (the first round's
+// confidences as rates, with the family and the command: the file
+// discovery/confidence_rates.json is, for the tuning family). Resumable: an object whose report.json was made by
 // the same `calib loop` command (LoopCommandLine, kept in the report) is
 // read back, not rerun. A loop that throws is recorded as that object's
 // error, and the benchmark goes on.
@@ -57,6 +59,7 @@ struct LoopBenchmarkResult {
   std::filesystem::path json;
   std::filesystem::path csv;
   std::filesystem::path html;  ///< empty when not written
+  std::filesystem::path confidence_rates;
 };
 
 /// The objects of `manifest` selected by `only` (ids; an unknown id throws
