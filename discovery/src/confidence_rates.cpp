@@ -69,19 +69,9 @@ class BinCounter {
   std::vector<int64_t> right_, all_;
 };
 
-json BinJson(const ConfidenceBin& b) {
-  return {{"from", b.from},
-          {"to", b.to},
-          {"right", static_cast<uint64_t>(b.right.successes)},
-          {"hypotheses", static_cast<uint64_t>(b.right.trials)},
-          {"rate", JsonNumber(b.right.rate)},
-          {"lower", JsonNumber(b.right.lower)},
-          {"upper", JsonNumber(b.right.upper)}};
-}
-
 json BinsJson(const std::vector<ConfidenceBin>& bins) {
   json list = json::array();
-  for (const ConfidenceBin& b : bins) list.push_back(BinJson(b));
+  for (const ConfidenceBin& b : bins) list.push_back(ToJson(b));
   return list;
 }
 
@@ -173,6 +163,16 @@ std::string RateText(const ConfidenceRates& rates, const std::string& effect, do
                                    : fmt::format("on {} of every effect's", CountText(all->right));
   return fmt::format("{} and {} at confidence {:.2f}-{:.2f} on the tuning family", own_text,
                      all_text, all->from, all->to);
+}
+
+json ToJson(const ConfidenceBin& b) {
+  return {{"from", b.from},
+          {"to", b.to},
+          {"right", static_cast<uint64_t>(b.right.successes)},
+          {"hypotheses", static_cast<uint64_t>(b.right.trials)},
+          {"rate", JsonNumber(b.right.rate)},
+          {"lower", JsonNumber(b.right.lower)},
+          {"upper", JsonNumber(b.right.upper)}};
 }
 
 json ToJson(const ConfidenceRates& rates) {

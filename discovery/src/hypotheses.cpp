@@ -632,16 +632,11 @@ json ToJson(const Hypothesis& h) {
   // What the confidence meant on the tuning family (derived; not read back).
   const ConfidenceRates& rates = TuningFamilyConfidenceRates();
   if (const ConfidenceBin* all = rates.Find(h.confidence)) {
-    const auto rate = [](const ConfidenceBin* bin) -> json {
-      if (bin == nullptr) return nullptr;
-      return {{"right", bin->right.successes},    {"hypotheses", bin->right.trials},
-              {"rate", JsonNumber(bin->right.rate)}, {"lower", JsonNumber(bin->right.lower)},
-              {"upper", JsonNumber(bin->right.upper)}};
-    };
+    const ConfidenceBin* own = rates.Find(h.effect, h.confidence);
     doc["tuning_family_rate"] = {{"from", all->from},
                                  {"to", all->to},
-                                 {"effect", rate(rates.Find(h.effect, h.confidence))},
-                                 {"all", rate(all)}};
+                                 {"effect", own == nullptr ? json(nullptr) : ToJson(*own)},
+                                 {"all", ToJson(*all)}};
   }
   return doc;
 }

@@ -74,6 +74,9 @@ std::string RateText(const ConfidenceBin& bin);
 /// family"; empty when the table has no bins.
 std::string RateText(const ConfidenceRates& rates, const std::string& effect, double confidence);
 
+/// One bin: from, to, right, hypotheses, rate, lower, upper (NaN as null).
+nlohmann::json ToJson(const ConfidenceBin& bin);
+
 /// confidence_rates.json ("format": "calib-confidence-rates/1").
 nlohmann::json ToJson(const ConfidenceRates& rates);
 /// Reads what ToJson writes; the rates and intervals are recomputed from the
