@@ -381,7 +381,8 @@ TEST(ResidualAnalyser, ATurnedMeshIsAPoseErrorNotAShapeError) {
   BitMask mesh_mask(320, 240);
   Rasterizer().RasterizeMesh(c.mesh, positions, mesh_mask);
   analyser.AddFrame(0, positions, mesh_mask);
-  const ResidualFrame& f = analyser.Finish().frames.at(0);
+  const ResidualAnalysis analysis = analyser.Finish();
+  const ResidualFrame& f = analysis.frames.at(0);
   EXPECT_GT(f.aligned_xor_px, 1000) << "no translation lays a turned mesh onto the object";
   EXPECT_LT(f.rigid_xor_px, f.aligned_xor_px / 50) << "the turn back does";
   EXPECT_NEAR(f.rigid_turn_rad, -turn, 0.6 * kPi / 180.0) << "within the search's half-degree step";
