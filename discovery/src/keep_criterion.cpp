@@ -129,24 +129,64 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
   }
   const double train_before = current.XorSum(recs_, true);
   const double train_after = candidate.XorSum(recs_, true);
-  v.before = current.XorSum(recs_, false);
-  v.after = candidate.XorSum(recs_, false);
-  const std::vector<std::vector<double>> old_errors = current.HeldOutFrameErrors(recs_);
-  const std::vector<std::vector<double>> new_errors = candidate.HeldOutFrameErrors(recs_);
-  // Both simulate every held-out frame (the candidate is AllOk, the
-  // reference always is): the frames pair up.
+  std::vector<std::vector<double>> old_errors = current.HeldOutFrameErrors(recs_);
+  std::vector<std::vector<double>> new_errors = candidate.HeldOutFrameErrors(recs_);
+  // The candidate simulates every held-out frame. The reference may not: a
+  // base fit of one push need not simulate another. Then the frames it
+  // simulated are compared, and the sums are over those.
+  std::string compared;
+  int compared_frames = 0;
+  for (size_t i = 0, r = 0; r < recs_.size(); ++r) {
+    if (recs_[r].train) continue;
+    const EvaluationResult& e = current.results[r];
+    if (!e.ok()) {
+      new_errors[i].resize(std::min(new_errors[i].size(), old_errors[i].size()));
+      compared += fmt::format("{}the previous model fails on {} from frame {} ({}): compared over the {} "
+                              "frames before",
+                              compared.empty() ? "" : "; ", recs_[r].name, e.failure_frame,
+                              e.failure_reason, old_errors[i].size());
+    }
+    compared_frames += static_cast<int>(old_errors[i].size());
+    ++i;
+  }
+  const auto sum = [](const std::vector<std::vector<double>>& errors) {
+    double s = 0.0;
+    for (const std::vector<double>& recording : errors) {
+      for (double e : recording) s += e;
+    }
+    return s;
+  };
+  v.before = compared.empty() ? current.XorSum(recs_, false) : sum(old_errors);
+  v.after = compared.empty() ? candidate.XorSum(recs_, false) : sum(new_errors);
+  if (compared_frames == 0) {
+    v.reason = compared + ": no held-out frame to compare";
+    return v;
+  }
   PairedTestOptions test;
   test.resamples = o_.test_resamples;
   test.seed = seed;
   v.test = PairedDropTest(old_errors, new_errors, o_.min_relative_drop, test);
   // The XOR sum also falls when a mesh leaves an object it overlaps poorly
   // (less than half): the held-out mean IoU must not fall.
+  // Where the reference failed, over the frames compared.
+  const auto compared_iou = [&](const EvaluationResult& e, size_t r, size_t frames) {
+    double s = 0.0;
+    const size_t first = static_cast<size_t>(recs_[r].first_compared_frame);
+    for (size_t f = first; f < first + frames; ++f) s += e.frames[f].iou;
+    return frames == 0 ? 0.0 : s / static_cast<double>(frames);
+  };
   double iou_before = 0.0, iou_after = 0.0;
   int held = 0;
   for (size_t r = 0; r < recs_.size(); ++r) {
     if (recs_[r].train) continue;
-    iou_before += current.results[r].mean_iou;
-    iou_after += candidate.results[r].mean_iou;
+    if (current.results[r].ok()) {
+      iou_before += current.results[r].mean_iou;
+      iou_after += candidate.results[r].mean_iou;
+    } else {
+      const size_t frames = old_errors[static_cast<size_t>(held)].size();
+      iou_before += compared_iou(current.results[r], r, frames);
+      iou_after += compared_iou(candidate.results[r], r, frames);
+    }
     ++held;
   }
   iou_before /= std::max(held, 1);
@@ -166,6 +206,7 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
       100.0 * o_.min_relative_drop, v.test.frames, v.test.blocks, fmt::join(blocks, "/"), v.test.p_value, train_before,
       train_after, train_ok ? "" : " (rose: the fit got worse where it was fitted)", iou_before,
       iou_after, iou_ok ? "" : " (fell: the XOR drop comes from a mesh that overlaps the object less)");
+  if (!compared.empty()) v.reason += "; " + compared;
   return v;
 }
 
