@@ -29,6 +29,7 @@ struct LoopRunFlags {
   int max_effects = kDefaults.max_effects;
   int tries = kDefaults.tries_per_round;
   double min_confidence = kDefaults.min_confidence;
+  std::string rank_by = kDefaults.rank_by_rate ? "rate" : "confidence";
   int overlays = kDefaults.overlays_per_recording;
   int equally_good_fits = kDefaults.equally_good_fits;
   double fdr = kDefaults.false_discovery_rate;
@@ -91,6 +92,12 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
                   "hypotheses below this confidence are not tried")
       ->check(CLI::Range(kLoopMinConfidenceRange.low, kLoopMinConfidenceRange.high))
       ->capture_default_str();
+  cmd->add_option("--rank-by", f->rank_by,
+                  "order in which hypotheses are tried: confidence, or rate (how often a "
+                  "hypothesis of that effect and confidence was right on the tuning family, "
+                  "docs/loop.md)")
+      ->check(CLI::IsMember({"confidence", "rate"}))
+      ->capture_default_str();
   cmd->add_option("--fdr", f->fdr,
                   "false-discovery rate of the keep rule's test, corrected for every hypothesis "
                   "tried (Benjamini-Hochberg)")
@@ -151,6 +158,7 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.max_effects = f.max_effects;
   options.tries_per_round = f.tries;
   options.min_confidence = f.min_confidence;
+  options.rank_by_rate = f.rank_by == "rate";
   options.overlays_per_recording = f.overlays;
   options.equally_good_fits = f.equally_good_fits;
   options.false_discovery_rate = f.fdr;

@@ -165,6 +165,17 @@ std::string RateText(const ConfidenceRates& rates, const std::string& effect, do
                      all_text, all->from, all->to);
 }
 
+double RankingRate(const ConfidenceRates& rates, const std::string& effect, double confidence,
+                   double prior_hypotheses) {
+  const ConfidenceBin* all = rates.Find(confidence);
+  if (all == nullptr || all->right.trials == 0) return NAN;
+  const double p = static_cast<double>(all->right.successes) / static_cast<double>(all->right.trials);
+  const ConfidenceBin* own = rates.Find(effect, confidence);
+  const double right = own == nullptr ? 0.0 : static_cast<double>(own->right.successes);
+  const double hypotheses = own == nullptr ? 0.0 : static_cast<double>(own->right.trials);
+  return (right + prior_hypotheses * p) / (hypotheses + prior_hypotheses);
+}
+
 json ToJson(const ConfidenceBin& b) {
   return {{"from", b.from},
           {"to", b.to},

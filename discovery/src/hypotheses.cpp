@@ -599,13 +599,32 @@ std::vector<Hypothesis> MergeHypotheses(const std::vector<std::vector<Hypothesis
   return out;
 }
 
+std::vector<Hypothesis> RankedByRate(std::vector<Hypothesis> hypotheses, const ConfidenceRates& rates) {
+  const auto& catalogue = TracedEffects();
+  const auto rate = [&](const Hypothesis& h) {
+    const double r = RankingRate(rates, h.effect, h.confidence);
+    return std::isnan(r) ? -1.0 : r;
+  };
+  std::stable_sort(hypotheses.begin(), hypotheses.end(), [&](const Hypothesis& x, const Hypothesis& y) {
+    const double rx = rate(x), ry = rate(y);
+    if (rx != ry) return rx > ry;
+    return Ranked(x, y, catalogue);
+  });
+  return hypotheses;
+}
+
 std::string HypothesesReport(const std::vector<Hypothesis>& hypotheses) {
   std::string s;
   int rank = 1;
   for (const Hypothesis& h : hypotheses) {
     s += fmt::format("{}. {:<18} confidence {:.2f}: {}\n", rank++, h.effect, h.confidence, h.summary);
-    const std::string rate = RateText(TuningFamilyConfidenceRates(), h.effect, h.confidence);
-    if (!rate.empty()) s += fmt::format("     ({})\n", rate);
+    const ConfidenceRates& rates = TuningFamilyConfidenceRates();
+    const std::string rate = RateText(rates, h.effect, h.confidence);
+    const double ranking = RankingRate(rates, h.effect, h.confidence);
+    if (!rate.empty()) {
+      s += std::isnan(ranking) ? fmt::format("     ({})\n", rate)
+                               : fmt::format("     (tuning-family rate {:.2f}: {})\n", ranking, rate);
+    }
     // The two strongest pieces of evidence.
     std::vector<const Evidence*> top;
     for (const Evidence& e : h.evidence) top.push_back(&e);
@@ -637,6 +656,7 @@ json ToJson(const Hypothesis& h) {
                                  {"to", all->to},
                                  {"effect", own == nullptr ? json(nullptr) : ToJson(*own)},
                                  {"all", ToJson(*all)}};
+    doc["tuning_family_rate"]["estimate"] = JsonNumber(RankingRate(rates, h.effect, h.confidence));
   }
   return doc;
 }

@@ -5,6 +5,7 @@
 #include "calib/jobs/fit_diagnostics.h"
 
 #include "calib/core/model_definition.h"
+#include "calib/discovery/confidence_rates.h"
 #include "calib/discovery/confusions.h"
 #include "calib/discovery/paired_test.h"
 #include "calib/discovery/report_html.h"
@@ -322,8 +323,8 @@ LoopResult Loop::Run() {
       "Benjamini-Hochberg procedure at a false-discovery rate of {:g}%. The training XOR sum must "
       "not rise and the held-out mean IoU must not fall. The previous model is replaced by the "
       "previous model with the new calibration's values (the effect off) where that is better on "
-      "training. Each round tries the {} best ranked hypotheses with confidence >= {:.2f} and "
-      "keeps, of those that pass, the one with the largest held-out drop; the loop stops when none "
+      "training. Each round tries the {} best ranked hypotheses with confidence >= {:.2f} (ranked "
+      "by {}) and keeps, of those that pass, the one with the largest held-out drop; the loop stops when none "
       "passes or {} effects are kept.",
       o_.holdout.empty() ? "frames" : "recordings",
       o_.holdout.empty()
@@ -331,6 +332,9 @@ LoopResult Loop::Run() {
           : std::string("recordings"),
       100.0 * o_.min_relative_drop,
       o_.test_resamples, 100.0 * o_.false_discovery_rate, o_.tries_per_round, o_.min_confidence,
+      o_.rank_by_rate ? "the rate at which a hypothesis of the same effect and confidence was right "
+                        "on the tuning family, that effect's count shrunk toward every effect's"
+                      : "confidence",
       o_.max_effects);
   report_.notes.push_back(fmt::format(
       "base model: the best on the training recordings of {} independent search{} of {} "
@@ -386,7 +390,12 @@ LoopResult Loop::Run() {
     for (size_t r = 0; r < recs_.size(); ++r) {
       if (recs_[r].train) per_recording.push_back(TraceHypotheses(current.residuals[r], current.effects));
     }
-    const std::vector<Hypothesis> ranked = MergeHypotheses(per_recording);
+    // With rank_by_rate, in the order of how often such a hypothesis was
+    // right on the tuning family (the table counts the first round's; later
+    // rounds use it as it is).
+    const std::vector<Hypothesis> ranked =
+        o_.rank_by_rate ? RankedByRate(MergeHypotheses(per_recording), TuningFamilyConfidenceRates())
+                        : MergeHypotheses(per_recording);
     report_.rounds.push_back({round, StageName(current.effects), ranked});
     Log(fmt::format("round {}: hypotheses from the residual of {}:\n{}", round,
                     StageName(current.effects), HypothesesReport(ranked)));
@@ -394,8 +403,7 @@ LoopResult Loop::Run() {
     std::vector<std::string> tries;
     for (const Hypothesis& h : ranked) {
       if (static_cast<int>(tries.size()) >= o_.tries_per_round) break;
-      if (h.confidence < o_.min_confidence) break;
-      tries.push_back(h.effect);
+      if (h.confidence >= o_.min_confidence) tries.push_back(h.effect);
     }
     if (tries.empty()) {
       report_.notes.push_back(fmt::format(

@@ -132,6 +132,10 @@ std::string LoopCommandLine(const LoopOptions& o) {
       o.restarts, o.overlays_per_recording,
       o.simulation.outline_contact ? "--outline-contact" : "--node-contact",
       o.simulation.contact_friction, ToString(o.simulation.integrator));
+  line += fmt::format(" --min-drop {}", o.min_relative_drop);  // it changes the decisions
+  // Only where it is not the default, so that the lines of loops run before
+  // the option existed still match.
+  if (o.rank_by_rate) line += " --rank-by rate";
   if (!o.write_html) line += " --no-html";
   return line;
 }

@@ -91,6 +91,12 @@ LoopSpec ParseLoopSpec(const std::string& text, const std::string& source, const
   ReadInRange<int>(r, "max_effects", 0, std::numeric_limits<int>::max(), &o.max_effects);
   ReadInRange<int>(r, "tries", 1, std::numeric_limits<int>::max(), &o.tries_per_round);
   ReadInRange(r, "min_confidence", kLoopMinConfidenceRange, &o.min_confidence);
+  if (r.Has("rank_by")) {
+    const YAML::Node n = r.Get("rank_by");
+    const std::string rank_by = r.String("rank_by", n);
+    if (rank_by != "confidence" && rank_by != "rate") r.Fail("rank_by", n, "must be confidence or rate");
+    o.rank_by_rate = rank_by == "rate";
+  }
   ReadInRange(r, "fdr", kLoopFdrRange, &o.false_discovery_rate);
   ReadInRange(r, "min_drop", kLoopMinDropRange, &o.min_relative_drop);
   ReadInRange(r, "held_out_stretch", kLoopHeldOutStretchRange, &o.held_out_stretch);
@@ -130,6 +136,7 @@ nlohmann::json ToJson(const LoopSpec& spec) {
           {"max_effects", o.max_effects},
           {"tries", o.tries_per_round},
           {"min_confidence", o.min_confidence},
+          {"rank_by", o.rank_by_rate ? "rate" : "confidence"},
           {"fdr", o.false_discovery_rate},
           {"min_drop", o.min_relative_drop},
           {"held_out_stretch", o.held_out_stretch},

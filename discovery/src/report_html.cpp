@@ -201,13 +201,17 @@ std::string RateOf(const ConfidenceBin* bin) {
 }
 
 // How often a first-round hypothesis of this effect, and of any effect, at
-// this confidence was right on the tuning family.
+// this confidence was right on the tuning family, and the estimate that
+// `--rank-by rate` ranks it by.
 std::string RateCell(const std::string& effect, double confidence) {
   const ConfidenceRates& rates = TuningFamilyConfidenceRates();
   const ConfidenceBin* all = rates.Find(confidence);
   if (all == nullptr) return "&ndash;";
-  return fmt::format("{}: {}<br>any effect: {}<br>(at {:.2f}&ndash;{:.2f})", Escape(effect),
-                     RateOf(rates.Find(effect, confidence)), RateOf(all), all->from, all->to);
+  const double ranking = RankingRate(rates, effect, confidence);
+  return fmt::format("{}: {}<br>any effect: {}<br>(at {:.2f}&ndash;{:.2f}){}", Escape(effect),
+                     RateOf(rates.Find(effect, confidence)), RateOf(all), all->from, all->to,
+                     std::isnan(ranking) ? std::string()
+                                         : fmt::format("<br>estimate {:.2f}", ranking));
 }
 
 std::string Params(const ParameterValues& values) {

@@ -1,7 +1,7 @@
 // The tracer's confidences as rates: counting first-round hypotheses by
 // confidence bin, the bins' edges, confidence_rates.json's round trip and
-// its errors, the table compiled in, and the rate stated beside each
-// hypothesis.
+// its errors, the table compiled in, the rate stated beside each
+// hypothesis, and the rate the loop ranks hypotheses by.
 
 #include "calib/discovery/confidence_rates.h"
 #include "calib/discovery/hypotheses.h"
@@ -210,6 +210,84 @@ TEST(ConfidenceRates, RateTextGivesCountsIntervalAndBin) {
                         "effect's at confidence 0.50-0.75 on the tuning family",
                         WilsonInterval(0, 1).upper));
   EXPECT_EQ(RateText(ConfidenceRates{}, "plasticity", 0.9), "");
+}
+
+// A table where, at 0.5-0.75, every effect's hypotheses were right on 4 of 10:
+// plasticity's on 3 of 3, push_relaxation's on 0 of 5, table_friction's on 1
+// of 2; above 0.75 push_relaxation's on 0 of 2; below 0.05 none of 4.
+ConfidenceRates RankingTable() {
+  std::vector<ObjectOutcome> outcomes;
+  for (int i = 0; i < 3; ++i) outcomes.push_back(Traced("plasticity", {{"plasticity", 0.6}}));
+  for (int i = 0; i < 5; ++i) outcomes.push_back(Traced("", {{"push_relaxation", 0.6}}));
+  outcomes.push_back(Traced("table_friction", {{"table_friction", 0.6}, {"push_relaxation", 0.9}}));
+  outcomes.push_back(Traced("viscoelastic", {{"table_friction", 0.55}, {"push_relaxation", 0.8}}));
+  for (int i = 0; i < 4; ++i) outcomes.push_back(Traced("", {{"inertia", 0.01}}));
+  return CountConfidenceRates(outcomes);
+}
+
+TEST(ConfidenceRates, RankingRateShrinksTheEffectsCountTowardTheBins) {
+  const ConfidenceRates rates = RankingTable();
+  ASSERT_EQ(rates.Find(0.6)->right.successes, 4);
+  ASSERT_EQ(rates.Find(0.6)->right.trials, 10);
+  const double p = 0.4, m = kRankingPriorHypotheses;
+  EXPECT_DOUBLE_EQ(RankingRate(rates, "plasticity", 0.6), (3 + m * p) / (3 + m));
+  EXPECT_DOUBLE_EQ(RankingRate(rates, "push_relaxation", 0.6), (0 + m * p) / (5 + m));
+  EXPECT_DOUBLE_EQ(RankingRate(rates, "table_friction", 0.7), (1 + m * p) / (2 + m));
+  // An effect the bin never saw takes the bin's rate; no shrinkage, its own.
+  EXPECT_DOUBLE_EQ(RankingRate(rates, "uneven_stiffness", 0.6), p);
+  EXPECT_DOUBLE_EQ(RankingRate(rates, "plasticity", 0.6, 0.0), 1.0);
+  EXPECT_NEAR(RankingRate(rates, "push_relaxation", 0.6, 1e12), p, 1e-9);
+  // Above 0.75: right on 0 of 2, so every effect's rate there is 0.
+  EXPECT_DOUBLE_EQ(RankingRate(rates, "push_relaxation", 0.9), 0.0);
+  // No hypothesis in the bin, or no table: no rate.
+  EXPECT_TRUE(std::isnan(RankingRate(rates, "plasticity", 0.3)));
+  EXPECT_TRUE(std::isnan(RankingRate(ConfidenceRates{}, "plasticity", 0.6)));
+}
+
+Hypothesis HypothesisOf(const std::string& effect, double confidence) {
+  Hypothesis h;
+  h.effect = effect;
+  h.confidence = confidence;
+  h.summary = effect;
+  return h;
+}
+
+std::vector<std::string> Effects(const std::vector<Hypothesis>& hypotheses) {
+  std::vector<std::string> out;
+  for (const Hypothesis& h : hypotheses) out.push_back(h.effect);
+  return out;
+}
+
+TEST(ConfidenceRates, HypothesesAreRankedByTheirRateThenByConfidence) {
+  const ConfidenceRates rates = RankingTable();
+  // By confidence: push_relaxation, table_friction, plasticity, viscoelastic
+  // (0.3: a bin without hypotheses), uneven_stiffness (a bin without rate
+  // either), inertia.
+  const std::vector<Hypothesis> hypotheses = {
+      HypothesisOf("push_relaxation", 0.9), HypothesisOf("table_friction", 0.7), HypothesisOf("plasticity", 0.55),
+      HypothesisOf("viscoelastic", 0.3),    HypothesisOf("uneven_stiffness", 0.26), HypothesisOf("inertia", 0.02)};
+  // plasticity 0.63, table_friction 0.43, push_relaxation 0 (0 of 2 above
+  // 0.75), inertia 0 (0 of 4 below 0.05) after it by confidence; then the two
+  // without a rate, by confidence.
+  EXPECT_EQ(Effects(RankedByRate(hypotheses, rates)),
+            (std::vector<std::string>{"plasticity", "table_friction", "push_relaxation", "inertia",
+                                      "viscoelastic", "uneven_stiffness"}));
+  // Without a table: by confidence, ties in the catalogue's order.
+  std::vector<Hypothesis> tied = hypotheses;
+  tied[1].confidence = 0.9;  // table_friction comes before push_relaxation in TracedEffects()
+  EXPECT_EQ(Effects(RankedByRate(tied, ConfidenceRates{})),
+            (std::vector<std::string>{"table_friction", "push_relaxation", "plasticity",
+                                      "viscoelastic", "uneven_stiffness", "inertia"}));
+}
+
+TEST(ConfidenceRates, EachHypothesisStatesTheRateItIsRankedBy) {
+  const Hypothesis h = HypothesisOf("plasticity", 0.6);
+  const double rate = RankingRate(TuningFamilyConfidenceRates(), "plasticity", 0.6);
+  ASSERT_FALSE(std::isnan(rate));
+  EXPECT_NE(HypothesesReport({h}).find(fmt::format("tuning-family rate {:.2f}", rate)),
+            std::string::npos)
+      << HypothesesReport({h});
+  EXPECT_DOUBLE_EQ(ToJson(h)["tuning_family_rate"]["estimate"].get<double>(), rate);
 }
 
 }  // namespace

@@ -664,6 +664,14 @@ TEST(LoopBenchmark, EachObjectsLoopIsTheCalibLoopCommandItRecords) {
   LoopOptions friction = o;
   friction.simulation.contact_friction = 0.25;
   EXPECT_NE(LoopCommandLine(friction), o.command);
+  // Every option that changes the decisions is on the line.
+  LoopOptions drop = o;
+  drop.min_relative_drop = 0.05;
+  EXPECT_NE(LoopCommandLine(drop).find(" --min-drop 0.05"), std::string::npos) << LoopCommandLine(drop);
+  LoopOptions rate = o;
+  rate.rank_by_rate = true;
+  EXPECT_NE(LoopCommandLine(rate).find(" --rank-by rate"), std::string::npos) << LoopCommandLine(rate);
+  EXPECT_EQ(o.command.find("--rank-by"), std::string::npos) << "the default: lines made before stay";
 }
 
 }  // namespace

@@ -40,6 +40,7 @@ TEST(LoopSpec, KeysLeftOutTakeTheLoopsDefaults) {
   EXPECT_EQ(o.simulation.outline_contact, defaults.simulation.outline_contact);
   EXPECT_EQ(o.simulation.contact_friction, defaults.simulation.contact_friction);
   EXPECT_EQ(o.simulation.integrator, defaults.simulation.integrator);
+  EXPECT_EQ(o.rank_by_rate, defaults.rank_by_rate);
   EXPECT_EQ(o.write_html, defaults.write_html);
   EXPECT_TRUE(o.out_dir.empty()) << "the runner's to set";
 }
@@ -56,6 +57,7 @@ optimizer: random
 max_effects: 1
 tries: 2
 min_confidence: 0.5
+rank_by: rate
 fdr: 0.1
 min_drop: 0.03
 held_out_stretch: 0.25
@@ -78,6 +80,7 @@ html: false
   EXPECT_EQ(o.max_effects, 1);
   EXPECT_EQ(o.tries_per_round, 2);
   EXPECT_EQ(o.min_confidence, 0.5);
+  EXPECT_TRUE(o.rank_by_rate);
   EXPECT_EQ(o.false_discovery_rate, 0.1);
   EXPECT_EQ(o.min_relative_drop, 0.03);
   EXPECT_EQ(o.held_out_stretch, 0.25);
@@ -106,6 +109,7 @@ TEST(LoopSpec, EveryMalformedKeyIsNamedWithItsRule) {
       {"name: a\ntrain: [a]\noptimizer: hillclimb", "spec: optimizer = 'hillclimb': unknown optimiser"},
       {"name: a\ntrain: [a]\ntries: 0", "spec: tries = '0': must be >= 1"},
       {"name: a\ntrain: [a]\nmin_confidence: 2", "spec: min_confidence = '2': must be in [0, 1]"},
+      {"name: a\ntrain: [a]\nrank_by: often", "spec: rank_by = 'often': must be confidence or rate"},
       {"name: a\ntrain: [a]\nfdr: 0.9", "spec: fdr = '0.9': must be in [0.001, 0.5]"},
       {"name: a\ntrain: [a]\nmin_drop: 0.6", "spec: min_drop = '0.6': must be in [0, 0.5]"},
       {"name: a\ntrain: [a]\nheld_out_stretch: 0.99", "spec: held_out_stretch = '0.99': must be in [0.05, 0.95]"},

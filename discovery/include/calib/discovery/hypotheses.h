@@ -22,6 +22,8 @@
 
 namespace calib {
 
+struct ConfidenceRates;
+
 /// The effect names TraceHypotheses scores, in a fixed order (that of
 /// core's EffectCatalogue()).
 const std::vector<std::string>& TracedEffects();
@@ -57,6 +59,15 @@ std::vector<Hypothesis> TraceHypotheses(const ResidualAnalysis& analysis,
 /// recordings' confidences; evidence concatenated with the recording named.
 /// Ranked as TraceHypotheses.
 std::vector<Hypothesis> MergeHypotheses(const std::vector<std::vector<Hypothesis>>& per_recording);
+
+/// `hypotheses` in the order `calib loop --rank-by rate` tries them: by the
+/// rate at which a hypothesis of the same effect and confidence was right on
+/// `rates`' family (RankingRate, confidence_rates.h), highest first; ties, and hypotheses the
+/// table gives no rate (after those it does), by confidence, then in
+/// TracedEffects() order. A confidence is a score of the signatures, not a
+/// probability: on the tuning family a push_relaxation hypothesis above 0.75
+/// was never right, a plasticity one at 0.5-0.75 more than half the time.
+std::vector<Hypothesis> RankedByRate(std::vector<Hypothesis> hypotheses, const ConfidenceRates& rates);
 
 /// Hypotheses in words, one per line with its top evidence (logs, reports).
 std::string HypothesesReport(const std::vector<Hypothesis>& hypotheses);

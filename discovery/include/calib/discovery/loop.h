@@ -70,6 +70,10 @@ struct LoopOptions {
   /// A hypothesis below this confidence is not tried (hypotheses.h: 0 means
   /// no residual worth explaining, or the recording cannot show it).
   double min_confidence = 0.05;
+  /// Ranks the hypotheses by the rate at which a hypothesis of the same
+  /// effect and confidence was right on the tuning family (RankedByRate,
+  /// hypotheses.h) instead of by confidence.
+  bool rank_by_rate = false;
   /// The keep rule (docs/loop.md): an effect is kept when a paired block
   /// test of its per-frame held-out XOR drop (paired_test.h) is significant
   /// after the Benjamini-Hochberg correction over every hypothesis the loop
