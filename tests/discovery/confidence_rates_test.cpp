@@ -280,7 +280,7 @@ TEST(ConfidenceRates, HypothesesAreRankedByTheirRateThenByConfidence) {
                                       "viscoelastic", "uneven_stiffness", "inertia"}));
 }
 
-TEST(ConfidenceRates, EachHypothesisStatesTheRateItIsRankedBy) {
+TEST(ConfidenceRates, EachHypothesisStatesItsRateEstimate) {
   const Hypothesis h = HypothesisOf("plasticity", 0.6);
   const double rate = RankingRate(TuningFamilyConfidenceRates(), "plasticity", 0.6);
   ASSERT_FALSE(std::isnan(rate));

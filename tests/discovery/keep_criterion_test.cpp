@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace calib::loop_detail {
@@ -62,6 +63,16 @@ TEST(KeepCriterion, AReferenceThatFailsOnAHeldOutRecordingIsComparedOverTheFrame
                           "compared over the 30 frames before"),
             std::string::npos)
       << v.reason;
+
+  // The mean IoU too is compared over those frames: a candidate that
+  // overlaps the object less there (0.85 against 0.90) does not pass,
+  // though its IoU over all 40 frames beats the reference's with the 10
+  // frames it did not simulate counted as 0 (0.675).
+  const Fit overlaps_less = FitWith(Result({400.0}, 1, 0.9), Result(after, 40, 0.85));
+  const KeepCriterion::Verdict fell = judge.Judge(previous, nullptr, overlaps_less, 7);
+  EXPECT_FALSE(fell.eligible) << fell.reason;
+  EXPECT_NE(fell.reason.find("held-out mean IoU 0.90000 -> 0.85000"), std::string::npos)
+      << fell.reason;
 
   // Failing from the first frame leaves nothing to compare: not kept.
   const Fit broken = FitWith(Result({500.0}, 1, 0.9), Result({}, 40, 0.0));
