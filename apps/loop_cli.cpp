@@ -265,8 +265,9 @@ std::optional<int> RunChosenLoopBenchmarkSubcommand(LoopBenchmarkCli& cli, int a
   options.write_html = !cli.flags.no_html;
   const LoopBenchmarkResult result = RunLoopBenchmark(options, ProgressLog(cli.flags));
   const BenchmarkAggregate& a = result.report.aggregate;
-  fmt::print("\nobjects: {} ({} run, {} read back, {} failed)\n", a.objects, result.ran,
-             result.resumed, result.failed);
+  fmt::print("\nobjects: {} ({} run, {} read back, {} failed{})\n", a.objects, result.ran, result.resumed,
+             result.failed,
+             result.not_made > 0 ? fmt::format(", {} not made by the generator", result.not_made) : "");
   fmt::print("false discoveries: {} / {}\n", a.false_discoveries.successes,
              a.false_discoveries.trials);
   for (const DetectionRate& d : a.detection) {

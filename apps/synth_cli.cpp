@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -87,6 +88,14 @@ int RunFamily(const SynthCli& cli) {
                summary.total_s, summary.total_s / summary.recordings,
                summary.simulation_s / summary.recordings, summary.rendering_s / summary.recordings,
                summary.bytes / 1e6);
+  }
+  if (!summary.not_made.empty()) {
+    // The family is usable without them (loop-benchmark leaves them out);
+    // the status says that not everything asked for was made.
+    fmt::print(stderr, "{} of {} objects not made (family.json marks them not_made):\n",
+               summary.not_made.size(), summary.objects);
+    for (const auto& [id, reason] : summary.not_made) fmt::print(stderr, "  {}: {}\n", id, reason);
+    return 1;
   }
   return 0;
 }

@@ -104,6 +104,10 @@ BenchmarkAggregate AggregateOutcomes(const std::vector<ObjectOutcome>& outcomes,
   int64_t false_discovered = 0, confusable_kept = 0, confusable_objects = 0;
   for (const ObjectOutcome& o : outcomes) {
     ++a.objects;
+    if (o.status == "not_made") {
+      ++a.not_made;
+      continue;
+    }
     if (o.resumed) ++a.resumed;
     if (std::isfinite(o.run_time_s)) {
       run_times.push_back(o.run_time_s);
@@ -128,7 +132,7 @@ BenchmarkAggregate AggregateOutcomes(const std::vector<ObjectOutcome>& outcomes,
     }
     sensitivities.push_back(o.MaxSensitivityRelative());
   }
-  const int64_t judged = a.objects - a.failed;
+  const int64_t judged = a.objects - a.failed - a.not_made;
   a.confusion = CountConfusion(effects, confusion_input);
   a.false_discoveries = WilsonInterval(false_discovered, judged);
   a.confusable_wrong_kept = WilsonInterval(confusable_kept, confusable_objects);
@@ -159,6 +163,7 @@ json ToJson(const BenchmarkAggregate& a) {
   json j;
   j["objects"] = a.objects;
   j["failed"] = a.failed;
+  j["not_made"] = a.not_made;
   j["resumed"] = a.resumed;
   json counts = json::object();
   for (size_t r = 0; r < a.confusion.rows.size(); ++r) {

@@ -128,7 +128,7 @@ std::string ObjectRow(const ObjectOutcome& o) {
       Label(o.loop_effect), Label(o.magnitude), o.ok() ? Escape(kept) : std::string("&ndash;"), top,
       Num(o.holdout_xor_before, 0), Num(o.holdout_xor_after, 0), Percent(o.HoldoutChange()),
       Num(o.train_xor_before, 0), Num(o.train_xor_after, 0), Share(o.MaxSensitivityRelative()),
-      Num(o.run_time_s, 1), o.ok() ? "ok" : Escape("error: " + o.error));
+      Num(o.run_time_s, 1), o.ok() ? "ok" : Escape(o.status + ": " + o.error));
 }
 
 }  // namespace
@@ -152,7 +152,8 @@ HtmlReportSummary WriteBenchmarkHtml(const std::filesystem::path& html_path,
   h << "<p>Command: <code>" << Escape(report.command) << "</code><br>Family: <code>"
     << Escape(report.family_dir) << "</code>, spec <code>" << Escape(report.family_spec)
     << "</code>, seed " << report.family_seed << ".<br>" << a.objects << " objects, " << a.failed
-    << " failed (left out of every rate), " << a.resumed
+    << " failed (left out of every rate), " << a.not_made
+    << " not made by the generator (left out), " << a.resumed
     << " read back from an earlier run. Run time " << Num(a.total_run_time_s, 1)
     << " s in all, per object median " << Num(a.run_time_s.median, 1) << " s, max "
     << Num(a.run_time_s.max, 1) << " s.</p>\n";

@@ -226,6 +226,13 @@ ObjectOutcome FailedObject(const FamilyObject& object, const std::string& messag
   return o;
 }
 
+ObjectOutcome NotMadeObject(const FamilyObject& object) {
+  ObjectOutcome o = FromManifest(object);
+  o.status = "not_made";
+  o.error = object.not_made;
+  return o;
+}
+
 json ToJson(const ObjectOutcome& outcome) {
   json j = json::object();
   Writer w{j};

@@ -63,6 +63,7 @@ FamilyObject ReadObject(const json& j, size_t index, const std::string& source,
   for (size_t i = 0; i < o.recordings.size(); ++i) {
     if (o.recordings[i].empty()) keys.Fail(fmt::format("recordings[{}]", i), "empty folder path");
   }
+  if (j.contains("not_made")) o.not_made = keys.TextOrNull("not_made");
   return o;
 }
 
@@ -100,6 +101,7 @@ FamilyManifest ReadFamilyManifest(const fs::path& family_dir) {
   FamilyManifest m = FamilyManifestFromJson(doc, path.string(), family_dir);
   for (size_t k = 0; k < m.objects.size(); ++k) {
     const FamilyObject& o = m.objects[k];
+    if (!o.not_made.empty()) continue;
     for (size_t i = 0; i < o.recordings.size(); ++i) {
       const fs::path folder = m.RecordingPath(o, i);
       std::error_code ec;

@@ -46,7 +46,7 @@ std::optional<LoopReport> EarlierReport(const fs::path& report_json, const std::
 }
 
 std::string OutcomeLine(const ObjectOutcome& o) {
-  if (!o.ok()) return "error: " + o.error;
+  if (!o.ok()) return o.status + ": " + o.error;
   return fmt::format("kept {}; held-out {:.0f} -> {:.0f} ({:+.1f} %); {:.1f} s",
                      o.effects_kept.empty() ? std::string("nothing")
                                             : fmt::format("{}", fmt::join(o.effects_kept, ", ")),
@@ -172,6 +172,15 @@ LoopBenchmarkResult RunLoopBenchmark(const LoopBenchmarkOptions& options, const 
   report.command = options.command;
   for (size_t k = 0; k < objects.size(); ++k) {
     const FamilyObject& object = objects[k];
+    if (!object.not_made.empty()) {
+      if (log) {
+        log(fmt::format("[{}/{}] {}: not made by the generator ({}); left out", k + 1, objects.size(),
+                        object.id, object.not_made));
+      }
+      report.outcomes.push_back(NotMadeObject(object));
+      ++result.not_made;
+      continue;
+    }
     const LoopOptions loop = ObjectLoopOptions(options.loop, manifest, object, options.out_dir);
     // Bad options are the command's error, not every object's.
     if (!loop.IsValid(&error)) throw std::invalid_argument(error);

@@ -185,7 +185,7 @@ FamilyPlan PlanFamily(const FamilySpec& spec, uint64_t seed, int count) {
   return plan;
 }
 
-std::string FamilyManifestJson(const FamilyPlan& plan) {
+std::string FamilyManifestJson(const FamilyPlan& plan, const std::map<std::string, std::string>& not_made) {
   nlohmann::ordered_json objects = nlohmann::ordered_json::array();
   const auto or_null = [](const std::optional<std::string>& v) {
     return v ? nlohmann::ordered_json(*v) : nlohmann::ordered_json(nullptr);
@@ -202,6 +202,7 @@ std::string FamilyManifestJson(const FamilyPlan& plan) {
                        {"confusable_with", or_null(o.cell.confusable_with)},
                        {"recordings", recordings},
                        {"scenario", Summary(o)}});
+    if (const auto it = not_made.find(o.id); it != not_made.end()) objects.back()["not_made"] = it->second;
   }
   const nlohmann::ordered_json manifest = {{"format", "calib-family/1"},
                                            {"name", plan.name},
@@ -211,6 +212,35 @@ std::string FamilyManifestJson(const FamilyPlan& plan) {
                                            {"objects", objects}};
   return manifest.dump(1) + "\n";
 }
+
+namespace {
+
+// The not_made marks of an earlier family.json in `out_dir` made from the
+// same plan (name, seed, count); none when there is none or it does not
+// read (it is about to be rewritten).
+std::map<std::string, std::string> EarlierNotMade(const fs::path& out_dir, const FamilyPlan& plan) {
+  std::map<std::string, std::string> marks;
+  std::error_code ec;
+  if (!fs::is_regular_file(out_dir / "family.json", ec)) return marks;
+  try {
+    std::ifstream in(out_dir / "family.json", std::ios::binary);
+    const nlohmann::json doc = nlohmann::json::parse(in);
+    if (doc.value("name", "") != plan.name || doc.value("seed", uint64_t{0}) != plan.seed ||
+        doc.value("count", int64_t{-1}) != plan.count) {
+      return marks;
+    }
+    for (const nlohmann::json& o : doc.at("objects")) {
+      if (o.contains("not_made") && o["not_made"].is_string()) {
+        marks[o.at("id").get<std::string>()] = o["not_made"].get<std::string>();
+      }
+    }
+  } catch (const std::exception&) {
+    marks.clear();
+  }
+  return marks;
+}
+
+}  // namespace
 
 FamilySummary MakeFamily(const FamilyPlan& plan, const fs::path& out_dir, const FamilyOptions& options) {
   const auto start = std::chrono::steady_clock::now();
@@ -229,7 +259,15 @@ FamilySummary MakeFamily(const FamilyPlan& plan, const fs::path& out_dir, const 
   if (!fs::is_directory(out_dir)) {
     throw std::runtime_error(fmt::format("{}: cannot create the output folder", out_dir.string()));
   }
-  WriteText(out_dir / "family.json", FamilyManifestJson(plan));
+  // The objects made now lose their marks; the others keep them (--only).
+  std::map<std::string, std::string> not_made;
+  if (options.only) {
+    not_made = EarlierNotMade(out_dir, plan);
+    not_made.erase(*options.only);
+  }
+  WriteText(out_dir / "family.json", FamilyManifestJson(plan, not_made));
+  std::function<SynthesisSummary(const Scenario&, const fs::path&)> synthesize = options.synthesize;
+  if (!synthesize) synthesize = [](const Scenario& s, const fs::path& dir) { return Synthesize(s, dir); };
   FamilySummary summary;
   for (const FamilyObject* o : chosen) {
     const fs::path dir = out_dir / o->id;
@@ -246,7 +284,18 @@ FamilySummary MakeFamily(const FamilyPlan& plan, const fs::path& out_dir, const 
         if (options.progress) options.progress(fmt::format("{}/{}.yaml", o->id, recording));
         continue;
       }
-      const SynthesisSummary s = Synthesize(o->scenarios[r], dir / recording);
+      SynthesisSummary s;
+      try {
+        s = synthesize(o->scenarios[r], dir / recording);
+      } catch (const std::exception& e) {
+        // One sampled scene the truth model cannot simulate must not cost
+        // the family: the object is left out, with its reason.
+        const std::string reason = fmt::format("{}: {}", recording, e.what());
+        summary.not_made[o->id] = reason;
+        not_made[o->id] = reason;
+        if (options.progress) options.progress(fmt::format("{}/{}: not made: {}", o->id, recording, e.what()));
+        break;
+      }
       ++summary.recordings;
       summary.simulation_s += s.simulation_s;
       summary.rendering_s += s.rendering_s;
@@ -254,6 +303,7 @@ FamilySummary MakeFamily(const FamilyPlan& plan, const fs::path& out_dir, const 
       if (options.progress) options.progress(fmt::format("{}/{}: {}", o->id, recording, s.BriefReport()));
     }
   }
+  if (!summary.not_made.empty()) WriteText(out_dir / "family.json", FamilyManifestJson(plan, not_made));
   summary.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

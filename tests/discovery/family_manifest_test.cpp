@@ -95,6 +95,28 @@ TEST(FamilyManifest, ReadsTheFileAndChecksTheRecordingFolders) {
   }
 }
 
+// An object the generator could not make: its reason is read, and its
+// recording folders need not exist; the other objects' still must.
+TEST(FamilyManifest, AnObjectNotMadeNeedsNoRecordingFolders) {
+  const fs::path dir = testing::ScratchDir("family_manifest_not_made");
+  for (const char* r : {"none-00/push-a", "none-00/push-b", "none-00/push-c"}) fs::create_directories(dir / r);
+  json doc = GoodManifest();
+  doc["objects"][0]["not_made"] = "push-b: SimulateTruth: frame 113: no convergence";
+  std::ofstream(dir / "family.json") << doc.dump();
+  const FamilyManifest m = ReadFamilyManifest(dir);
+  EXPECT_EQ(m.objects[0].not_made, "push-b: SimulateTruth: frame 113: no convergence");
+  EXPECT_EQ(m.objects[1].not_made, "");
+
+  doc["objects"][0]["not_made"] = nullptr;  // null: made
+  std::ofstream(dir / "family.json") << doc.dump();
+  try {
+    ReadFamilyManifest(dir);
+    FAIL() << "a missing recording folder of an object made was not named";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NAMES(std::string(e.what()), "objects[0] (id 'plasticity-clear-00').recordings[0]");
+  }
+}
+
 TEST(FamilyManifest, AMissingOrMalformedFileIsNamed) {
   const fs::path dir = testing::ScratchDir("family_manifest_bad_file");
   try {
@@ -176,6 +198,9 @@ TEST(FamilyManifest, EachKindOfBadInputNamesTheFileObjectAndKey) {
       {"recording empty",
        [](json& j) { j["objects"][1]["recordings"][0] = ""; },
        {"objects[1] (id 'none-00').recordings[0]", "empty"}},
+      {"not_made not a string",
+       [](json& j) { j["objects"][1]["not_made"] = true; },
+       {"objects[1] (id 'none-00').not_made", "not a string or null"}},
   };
   for (const BadCase& c : cases) {
     json doc = GoodManifest();

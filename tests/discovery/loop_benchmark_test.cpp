@@ -577,6 +577,38 @@ TEST(LoopBenchmark, AFailingLoopIsRecordedAndTheBenchmarkGoesOn) {
   EXPECT_EQ(next.ran, (std::vector<std::string>{"p-01"}));
 }
 
+// An object family.json marks not_made (the generator could not make it):
+// no loop runs, its outcome says why, and it is left out of every rate.
+TEST(LoopBenchmark, AnObjectTheGeneratorDidNotMakeIsListedAndLeftOut) {
+  const fs::path dir = testing::ScratchDir("loop_benchmark_not_made");
+  const fs::path family = MakeFamily(dir / "fam", {"p-00", "p-01", "n-00"});
+  json manifest = json::parse(testing::ReadText(family / "family.json"));
+  manifest["objects"][1]["not_made"] = "push-b: SimulateTruth: frame 113: no convergence";
+  std::ofstream(family / "family.json") << manifest.dump(1);
+  fs::remove_all(family / "p-01");
+  FakeLoop loop;
+  const LoopBenchmarkResult result = RunLoopBenchmark(Options(family, dir / "out", &loop));
+  EXPECT_EQ(loop.ran, (std::vector<std::string>{"p-00", "n-00"}));
+  EXPECT_EQ(result.not_made, 1);
+  EXPECT_EQ(result.failed, 0);
+  ASSERT_EQ(result.report.outcomes.size(), 3u);
+  const ObjectOutcome& skipped = result.report.outcomes[1];
+  EXPECT_EQ(skipped.id, "p-01");
+  EXPECT_EQ(skipped.status, "not_made");
+  EXPECT_EQ(skipped.error, "push-b: SimulateTruth: frame 113: no convergence");
+  const BenchmarkAggregate& a = result.report.aggregate;
+  EXPECT_EQ(a.objects, 3);
+  EXPECT_EQ(a.not_made, 1);
+  EXPECT_EQ(a.failed, 0);
+  EXPECT_EQ(a.run_time_s.count, 2);
+  ExpectRate(a.detection.at(0).detected, 1, 1, "the object not made left out");
+  ExpectRate(a.false_discoveries, 0, 2, "false discoveries over the objects made");
+  const json doc = json::parse(testing::ReadText(result.json));
+  EXPECT_EQ(doc["aggregate"]["not_made"], 1);
+  EXPECT_EQ(doc["objects"][1]["status"], "not_made");
+  EXPECT_FALSE(fs::exists(dir / "out" / "objects" / "p-01")) << "nothing is written for it";
+}
+
 TEST(LoopBenchmark, BadOptionsStopItBeforeAnyLoopRuns) {
   const fs::path dir = testing::ScratchDir("loop_benchmark_bad_options");
   const fs::path family = MakeFamily(dir / "fam", {"p-00", "n-00"});

@@ -18,8 +18,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -427,6 +429,59 @@ TEST(Family, PlanWritesTheManifestAndScenarioFilesOnly) {
   options.only = "plasticity-clear-07";
   const std::string error = testing::ErrorOf<FamilyError>([&] { MakeFamily(plan, one, options); });
   testing::ExpectMessageNames(error, "", {"plasticity-clear-07", "no such object", "plasticity-clear-01"});
+}
+
+// A recording the truth model cannot make leaves its object out (its other
+// recordings are not attempted), with the reason in the summary and in
+// family.json; every other object is made. Re-making one object keeps the
+// other objects' marks; re-making the object left out clears its own.
+TEST(Family, ARecordingThatCannotBeMadeLeavesItsObjectOutAndTheOthersAreMade) {
+  const auto dir = testing::ScratchDir("family_not_made");
+  const FamilyPlan plan = PlanFamily(Small(), 7, 2);
+  std::vector<std::string> attempted;
+  FamilyOptions options;
+  options.synthesize = [&](const Scenario&, const fs::path& out) {
+    const std::string id = out.parent_path().filename().string(), recording = out.filename().string();
+    attempted.push_back(id + "/" + recording);
+    if (id + "/" + recording == "plasticity-clear-01/push-b" || id + "/" + recording == "none-00/push-a") {
+      throw std::runtime_error("SimulateTruth: frame 113: a quasi-static step did not converge");
+    }
+    fs::create_directories(out);
+    return SynthesisSummary{};
+  };
+  const FamilySummary summary = MakeFamily(plan, dir, options);
+  EXPECT_EQ(summary.objects, 6);
+  EXPECT_EQ(summary.recordings, 6 * 2 - 3) << "push-a of plasticity-clear-01 made, none-00 neither";
+  EXPECT_EQ(std::count(attempted.begin(), attempted.end(), "none-00/push-b"), 0)
+      << "the object is out once a recording fails";
+  EXPECT_EQ(attempted.size(), 6u * 2 - 1);
+  const std::map<std::string, std::string> expected = {
+      {"none-00", "push-a: SimulateTruth: frame 113: a quasi-static step did not converge"},
+      {"plasticity-clear-01", "push-b: SimulateTruth: frame 113: a quasi-static step did not converge"}};
+  EXPECT_EQ(summary.not_made, expected);
+  EXPECT_EQ(testing::ReadText(dir / "family.json"), FamilyManifestJson(plan, expected));
+  const auto manifest = nlohmann::json::parse(testing::ReadText(dir / "family.json"));
+  int marked = 0;
+  for (const auto& o : manifest["objects"]) marked += o.contains("not_made") ? 1 : 0;
+  EXPECT_EQ(marked, 2);
+
+  // --only another object: the marks stay.
+  options.only = "plasticity-clear-00";
+  EXPECT_TRUE(MakeFamily(plan, dir, options).not_made.empty());
+  EXPECT_EQ(testing::ReadText(dir / "family.json"), FamilyManifestJson(plan, expected));
+  // --only the object left out, made this time: its mark goes.
+  options.only = "none-00";
+  options.synthesize = [](const Scenario&, const fs::path& out) {
+    fs::create_directories(out);
+    return SynthesisSummary{};
+  };
+  EXPECT_TRUE(MakeFamily(plan, dir, options).not_made.empty());
+  EXPECT_EQ(testing::ReadText(dir / "family.json"),
+            FamilyManifestJson(plan, {{"plasticity-clear-01", expected.at("plasticity-clear-01")}}));
+  // Another plan (seed) in the folder: its marks are not this plan's.
+  const FamilyPlan other = PlanFamily(Small(), 8, 2);
+  EXPECT_TRUE(MakeFamily(other, dir, options).not_made.empty());
+  EXPECT_EQ(testing::ReadText(dir / "family.json"), FamilyManifestJson(other));
 }
 
 // One object of a tiny family, synthesised: 10 frames on a coarse mesh in a

@@ -2,6 +2,8 @@
 // The loop benchmark's rates over a family's objects (docs/loop.md, "Loop
 // benchmark"). Objects whose loop failed (status "error") are counted but
 // left out of every rate and of the held-out changes; their run time counts.
+// Objects the generator did not make (status "not_made") are counted apart
+// and left out of everything else.
 //
 // - confusion: effect present (rows) against effects kept (columns);
 // - detection per (effect, magnitude): objects whose loop effect was kept
@@ -57,8 +59,9 @@ struct ChangeSummary {
 };
 
 struct BenchmarkAggregate {
-  int64_t objects = 0;  ///< every object, failed ones included
+  int64_t objects = 0;  ///< every object, failed and not made ones included
   int64_t failed = 0;
+  int64_t not_made = 0;
   int64_t resumed = 0;
   ConfusionTable confusion;
   std::vector<DetectionRate> detection;  ///< by effect order, then magnitude (faint, clear, others)

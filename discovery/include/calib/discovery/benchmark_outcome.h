@@ -43,7 +43,9 @@ struct ObjectOutcome {
   std::string magnitude;
   std::string confusable_with;
 
-  /// "ok", or "error" when the loop threw (`error` holds its message).
+  /// "ok"; "error" when the loop threw (`error` holds its message);
+  /// "not_made" when the generator could not make the object's recordings
+  /// (`error` holds its reason; the loop did not run).
   std::string status = "ok";
   std::string error;
   /// Read back from an earlier run's report.json instead of run.
@@ -88,6 +90,8 @@ ObjectOutcome SummariseObject(const FamilyObject& object, const LoopReport& repo
 /// The outcome of `object` whose loop threw `message`.
 ObjectOutcome FailedObject(const FamilyObject& object, const std::string& message,
                            double run_time_s);
+/// The outcome of `object` that the generator did not make (its not_made).
+ObjectOutcome NotMadeObject(const FamilyObject& object);
 
 /// summary.json: every field above, plus the derived ones (top_hypothesis,
 /// detected, false_discovery, confusable_kept, holdout_change,

@@ -12,6 +12,9 @@
 //                 null, "recordings": ["plasticity-clear-00/push-a", "plasticity-clear-00/push-b"],
 //                 "scenario": {...}}, ...]}
 //
+// An object the generator could not make carries "not_made": the recording
+// and the reason (`calib synth --family` writes it and goes on with the
+// others); its recordings need not exist, and the benchmark leaves it out.
 // Other keys are allowed and ignored (the scenario is not read).
 
 #include <nlohmann/json_fwd.hpp>
@@ -35,6 +38,9 @@ struct FamilyObject {
   /// Recording folders relative to the family folder (or absolute); the
   /// first is trained on, the others are held out. At least one.
   std::vector<std::string> recordings;
+  /// Why the generator could not make the object's recordings ("push-b:
+  /// SimulateTruth: ..."); empty: made.
+  std::string not_made;
 };
 
 struct FamilyManifest {
@@ -60,8 +66,8 @@ FamilyManifest FamilyManifestFromJson(const nlohmann::json& doc, const std::stri
                                       const std::filesystem::path& dir);
 
 /// Reads and validates `family_dir`/family.json, and checks that every
-/// recording folder exists (a missing one is named with its object and
-/// key). Throws std::invalid_argument (or std::runtime_error for an
+/// recording folder of the objects made exists (a missing one is named
+/// with its object and key). Throws std::invalid_argument (or std::runtime_error for an
 /// unreadable file), naming the file.
 FamilyManifest ReadFamilyManifest(const std::filesystem::path& family_dir);
 

@@ -14,7 +14,8 @@
 // discovery/confidence_rates.json is, for the tuning family). Resumable: an object whose report.json was made by
 // the same `calib loop` command (LoopCommandLine, kept in the report) is
 // read back, not rerun. A loop that throws is recorded as that object's
-// error, and the benchmark goes on.
+// error, and the benchmark goes on. An object the generator did not make
+// (family.json's not_made) is recorded as not made, with its reason.
 
 #include "calib/discovery/benchmark_report.h"
 #include "calib/discovery/family_manifest.h"
@@ -56,6 +57,7 @@ struct LoopBenchmarkResult {
   int ran = 0;      ///< objects whose loop ran (failed ones included)
   int resumed = 0;  ///< objects read back from an earlier report.json
   int failed = 0;   ///< objects whose loop threw
+  int not_made = 0;  ///< objects the generator did not make (family.json's not_made)
   std::filesystem::path json;
   std::filesystem::path csv;
   std::filesystem::path html;  ///< empty when not written

@@ -18,10 +18,12 @@
 // one object can be made again alone.
 
 #include "calib/synth/scenario.h"
+#include "calib/synth/synthesize.h"
 
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -108,8 +110,10 @@ FamilyPlan PlanFamily(const FamilySpec& spec, uint64_t seed, int count);
 /// loop_effect, magnitude, confusable_with, recordings (relative to the
 /// family folder; the first is trained on) and a summary of its sampled
 /// scenario (shape, law, E, nu, friction, camera, effect parameters, the
-/// pushes, the scenario files).
-std::string FamilyManifestJson(const FamilyPlan& plan);
+/// pushes, the scenario files). An object named in `not_made` (id ->
+/// reason) carries "not_made": the reason (the benchmark leaves it out).
+std::string FamilyManifestJson(const FamilyPlan& plan,
+                               const std::map<std::string, std::string>& not_made = {});
 
 /// What MakeFamily wrote.
 struct FamilySummary {
@@ -119,6 +123,10 @@ struct FamilySummary {
   double rendering_s = 0.0;
   double total_s = 0.0;          ///< wall time of the whole call
   uint64_t bytes = 0;
+  /// Objects of this call the generator could not make, id -> "recording:
+  /// reason" (the truth model did not converge, a file could not be
+  /// written); family.json marks them not_made.
+  std::map<std::string, std::string> not_made;
 };
 
 struct FamilyOptions {
@@ -129,12 +137,20 @@ struct FamilyOptions {
   /// Called with a line after each recording (and each scenario file in a
   /// plan); may be empty.
   std::function<void(const std::string&)> progress;
+  /// Makes one recording; empty: Synthesize. (Tests replace it.)
+  std::function<SynthesisSummary(const Scenario&, const std::filesystem::path&)> synthesize;
 };
 
 /// Writes `plan` into `out_dir`: family.json, and per object
 /// <id>/<recording>.yaml (the scenario, for `calib synth`) and, unless
-/// plan_only, the recording folder <id>/<recording>/ (Synthesize). Throws
-/// FamilyError for an unknown `only` id, and what Synthesize throws.
+/// plan_only, the recording folder <id>/<recording>/ (Synthesize). A
+/// recording that cannot be made (Synthesize throws) leaves its object out:
+/// the object's other recordings are not made, the reason goes into the
+/// summary and family.json ("not_made"), and the other objects are made.
+/// With `only`, the marks of the other objects in an earlier family.json of
+/// the same plan (name, seed, count) are kept. Throws FamilyError for an
+/// unknown `only` id, std::runtime_error when the folder or family.json
+/// cannot be written.
 FamilySummary MakeFamily(const FamilyPlan& plan, const std::filesystem::path& out_dir,
                          const FamilyOptions& options = {});
 
