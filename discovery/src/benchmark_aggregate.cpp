@@ -104,7 +104,7 @@ BenchmarkAggregate AggregateOutcomes(const std::vector<ObjectOutcome>& outcomes,
   int64_t false_discovered = 0, confusable_kept = 0, confusable_objects = 0;
   for (const ObjectOutcome& o : outcomes) {
     ++a.objects;
-    if (o.status == "not_made") {
+    if (o.NotMade()) {
       ++a.not_made;
       continue;
     }

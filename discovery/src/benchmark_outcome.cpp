@@ -228,7 +228,7 @@ ObjectOutcome FailedObject(const FamilyObject& object, const std::string& messag
 
 ObjectOutcome NotMadeObject(const FamilyObject& object) {
   ObjectOutcome o = FromManifest(object);
-  o.status = "not_made";
+  o.status = ObjectOutcome::kNotMadeStatus;
   o.error = object.not_made;
   return o;
 }

@@ -66,6 +66,8 @@ struct ObjectOutcome {
   double run_time_s = NAN;                     ///< the loop's run time
 
   bool ok() const { return status == "ok"; }
+  bool NotMade() const { return status == kNotMadeStatus; }
+  static constexpr const char* kNotMadeStatus = "not_made";
   /// The first round's top-ranked effect; empty when there was none.
   std::string TopHypothesis() const;
   /// The first round's confidence of `effect`; NaN when not ranked.

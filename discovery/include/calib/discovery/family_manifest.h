@@ -67,8 +67,8 @@ FamilyManifest FamilyManifestFromJson(const nlohmann::json& doc, const std::stri
 
 /// Reads and validates `family_dir`/family.json, and checks that every
 /// recording folder of the objects made exists (a missing one is named
-/// with its object and key). Throws std::invalid_argument (or std::runtime_error for an
-/// unreadable file), naming the file.
+/// with its object and key). Throws std::invalid_argument (or
+/// std::runtime_error for an unreadable file), naming the file.
 FamilyManifest ReadFamilyManifest(const std::filesystem::path& family_dir);
 
 }  // namespace calib
