@@ -5,7 +5,7 @@
 //    per evaluation, to compare with BM_FullEvaluation of the reference
 //    scene (evaluation_bench.cpp);
 //  - the reference scene as the objective: evaluations per second at 1, 2,
-//    ... threads, and so the parallel efficiency.
+//    4, ... threads up to the machine's, and so the parallel efficiency.
 //
 //   build/bench/calib_bench --benchmark_filter=Runner
 
@@ -21,8 +21,10 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <memory>
+#include <thread>
 
 namespace calib::bench {
 namespace {
@@ -100,24 +102,32 @@ void RunJobs(benchmark::State& state, const Objective& objective, int64_t evalua
       static_cast<double>(done), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
+// 1, 2, 4, ... threads up to the machine's hardware threads, and that
+// count itself when it is not a power of two.
+void ThreadCounts(benchmark::internal::Benchmark* b) {
+  const int hardware = std::max(2, static_cast<int>(std::thread::hardware_concurrency()));
+  for (int t = 1; t < hardware; t *= 2) b->Arg(t);
+  b->Arg(hardware);
+}
+
 void BM_RunnerOverheadTrivialObjective(benchmark::State& state) {
   static const TrivialObjective objective;
   RunJobs(state, objective, 1024);
 }
 BENCHMARK(BM_RunnerOverheadTrivialObjective)
-    ->Arg(1)
-    ->Arg(2)
+    ->Apply(ThreadCounts)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
 void BM_RunnerThroughputReferenceScene(benchmark::State& state) {
   static const RecordingObjective objective(
       {std::make_shared<const PreparedRecording>(MakeReferenceScene())}, SimulationOptions{});
-  RunJobs(state, objective, 16);
+  // Eight evaluations a thread, at least 16: every thread has work for the
+  // whole job, so the figure is throughput, not the last batch's tail.
+  RunJobs(state, objective, std::max<int64_t>(16, 8 * state.range(0)));
 }
 BENCHMARK(BM_RunnerThroughputReferenceScene)
-    ->Arg(1)
-    ->Arg(2)
+    ->Apply(ThreadCounts)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->Iterations(2);
