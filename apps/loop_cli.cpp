@@ -35,6 +35,7 @@ struct LoopRunFlags {
   double fdr = kDefaults.false_discovery_rate;
   double min_drop = kDefaults.min_relative_drop;
   double held_out_stretch = kDefaults.held_out_stretch;
+  int refit_candidates = kDefaults.refit_candidates;
   int restarts = kDefaults.restarts;
   std::string cache_dir;
   bool no_cache = false;
@@ -119,6 +120,12 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
                   "(0: none)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_option("--refit-candidates", f->refit_candidates,
+                  "where a calibration's best fit fails to simulate a held-out recording: its "
+                  "next best candidates on training tried there, best first; the first that "
+                  "simulates every held-out recording is the fit (0: judge the failing fit)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_option("--restarts", f->restarts,
                   "independent searches of the base model's calibration, each with --budget "
                   "evaluations (the first from the box's centre); the best on the training "
@@ -164,6 +171,7 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.false_discovery_rate = f.fdr;
   options.min_relative_drop = f.min_drop;
   options.held_out_stretch = f.held_out_stretch;
+  options.refit_candidates = f.refit_candidates;
   options.restarts = f.restarts;
   options.write_html = !f.no_html;
   options.simulation.outline_contact = f.outline_contact;

@@ -36,6 +36,23 @@ double SegmentationNoisePx(const std::vector<BitMask>& masks) {
   return sum / static_cast<double>(flicker.size());
 }
 
+std::vector<ParameterValues> RankedByTrainingScore(const std::vector<EvaluationRecord>& evaluations,
+                                                   const ParameterValues& excluded, int limit) {
+  std::vector<const EvaluationRecord*> ok;
+  for (const EvaluationRecord& e : evaluations) {
+    if (e.ok && std::isfinite(e.score)) ok.push_back(&e);
+  }
+  std::stable_sort(ok.begin(), ok.end(),
+                   [](const EvaluationRecord* a, const EvaluationRecord* b) { return a->score < b->score; });
+  std::vector<ParameterValues> out;
+  for (const EvaluationRecord* e : ok) {
+    if (static_cast<int>(out.size()) >= limit) break;
+    if (e->parameters == excluded || std::find(out.begin(), out.end(), e->parameters) != out.end()) continue;
+    out.push_back(e->parameters);
+  }
+  return out;
+}
+
 std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationRecord>& evaluations,
                                                    double tolerance, int limit) {
   std::vector<const EvaluationRecord*> ok;

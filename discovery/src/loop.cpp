@@ -72,6 +72,9 @@ bool LoopOptions::IsValid(std::string* error) const {
   if (equally_good_fits < 0) {
     return fail(fmt::format("loop: --equally-good-fits = {}: must be >= 0", equally_good_fits));
   }
+  if (refit_candidates < 0) {
+    return fail(fmt::format("loop: --refit-candidates = {}: must be >= 0", refit_candidates));
+  }
   if (restarts < 1) return fail(fmt::format("loop: --restarts = {}: must be >= 1", restarts));
   if (overlays_per_recording < 0) {
     return fail(fmt::format("loop: overlays per recording = {}: must be >= 0",
@@ -427,6 +430,7 @@ LoopResult Loop::Run() {
               : fmt::format("round {}: calibrating {} (warm start from {})", round,
                             StageName(effects), StageName(current.effects)));
       Fit fit = calibrator_->Calibrate(index, effects, &current);
+      if (!fit.refit.empty()) Log(fmt::format("round {}: {}: {}", round, StageName(effects), fit.refit));
       LogFitDiagnostics(fit);
       calibrator_->MeasureEquallyGood(&fit);
       // The reference: the previous model, or the previous model with the
@@ -448,6 +452,7 @@ LoopResult Loop::Run() {
             "XOR {:.0f} < {:.0f} of the previous fit): {}",
             effect, ablation.XorSum(recs_, true), current.XorSum(recs_, true), v.reason);
       }
+      if (!fit.refit.empty()) v.reason = fmt::format("{}; {}", fit.refit, v.reason);
       p_index.push_back(p_values.size());
       p_values.push_back(v.test.p_value);
       ReportStage stage = MakeStage(fit, effect, StageDecision::kRejected);

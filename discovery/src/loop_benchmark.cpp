@@ -133,6 +133,7 @@ std::string LoopCommandLine(const LoopOptions& o) {
       o.simulation.outline_contact ? "--outline-contact" : "--node-contact",
       o.simulation.contact_friction, ToString(o.simulation.integrator));
   line += fmt::format(" --min-drop {}", o.min_relative_drop);  // it changes the decisions
+  line += fmt::format(" --refit-candidates {}", o.refit_candidates);  // so does this
   // Only where it is not the default, so that the lines of loops run before
   // the option existed still match.
   if (o.rank_by_rate) line += " --rank-by rate";

@@ -101,6 +101,7 @@ LoopSpec ParseLoopSpec(const std::string& text, const std::string& source, const
   ReadInRange(r, "min_drop", kLoopMinDropRange, &o.min_relative_drop);
   ReadInRange(r, "held_out_stretch", kLoopHeldOutStretchRange, &o.held_out_stretch);
   ReadInRange<int>(r, "equally_good_fits", 0, std::numeric_limits<int>::max(), &o.equally_good_fits);
+  ReadInRange<int>(r, "refit_candidates", 0, std::numeric_limits<int>::max(), &o.refit_candidates);
   ReadInRange<int>(r, "restarts", 1, std::numeric_limits<int>::max(), &o.restarts);
   ReadInRange<int>(r, "overlays", 0, std::numeric_limits<int>::max(), &o.overlays_per_recording);
   r.Read("outline_contact", &o.simulation.outline_contact);
@@ -141,6 +142,7 @@ nlohmann::json ToJson(const LoopSpec& spec) {
           {"min_drop", o.min_relative_drop},
           {"held_out_stretch", o.held_out_stretch},
           {"equally_good_fits", o.equally_good_fits},
+          {"refit_candidates", o.refit_candidates},
           {"restarts", o.restarts},
           {"overlays", o.overlays_per_recording},
           {"outline_contact", o.simulation.outline_contact},

@@ -66,6 +66,9 @@ struct Fit {
   /// value moves by 0.1 % (px; 0 until measured), and that value's name.
   double holdout_sensitivity_px = 0.0;
   std::string holdout_sensitivity_parameter;
+  /// What a refit where the calibration's best failed on a held-out
+  /// recording did (LoopOptions::refit_candidates); empty when none ran.
+  std::string refit;
 
   /// The XOR sum over the training (or held-out) recordings; held out: over
   /// their compared frames. +infinity where a recording failed.
@@ -137,6 +140,12 @@ class StageCalibrator {
   bool StartsCold(const std::vector<std::string>& effects, const Fit& warm) const;
   /// The fit's results and residuals on every recording.
   void Measure(Fit* fit) const;
+  /// Where `fit` simulates every training recording but fails on a
+  /// held-out one: the first of its calibration's next best candidates by
+  /// training score (RankedByTrainingScore) that simulates every held-out
+  /// recording becomes the fit, measured again (LoopOptions::refit_candidates).
+  /// Says what it did in fit->refit.
+  void RefitWhereHeldOutFails(Fit* fit) const;
   /// The spread of the held-out error over the fit's equally good fits.
   void MeasureEquallyGood(Fit* fit) const;
   /// How far a 0.1 % nudge of each of the fit's values moves its held-out

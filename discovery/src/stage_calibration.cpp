@@ -406,7 +406,8 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
   const uint64_t seed = o_.seed * 1000 + static_cast<uint64_t>(index);
   Fit fit;
   fit.effects = effects;
-  if (warm == nullptr && scales_.swing_stiffness > 0.0 && HasInertia(effects)) {
+  const bool swing = warm == nullptr && scales_.swing_stiffness > 0.0 && HasInertia(effects);
+  if (swing) {
     fit.values = CalibrateSwing(index, effects, settings, budget, seed, &fit);
   } else if (warm == nullptr) {
     // Independent searches; the best on the training recordings is the fit
@@ -494,8 +495,11 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
     every_job_flat = every_job_flat && (d.uninformative || d.scored == 0);
   }
   fit.uninformative = every_job_flat && scored >= 2;
-  fit.at_bounds = DiagnoseFit(settings, fit.values, {}).at_bounds;
   Measure(&fit);
+  // A swing's jobs score shorter horizons than the whole recordings, so
+  // their candidates do not rank by the fit's training score.
+  if (!effects.empty() && !swing) RefitWhereHeldOutFails(&fit);
+  fit.at_bounds = DiagnoseFit(settings, fit.values, {}).at_bounds;
   fit.seconds = Since(start);
   return fit;
 }
@@ -557,6 +561,53 @@ std::vector<int> StageCalibrator::HeldOutIndices() const {
 std::unique_ptr<BatchEvaluator> StageCalibrator::MakeEvaluator(const Objective& objective) const {
   if (o_.make_evaluator) return o_.make_evaluator(objective, threads_);
   return std::make_unique<ThreadBatchEvaluator>(objective, threads_);
+}
+
+void StageCalibrator::RefitWhereHeldOutFails(Fit* fit) const {
+  if (o_.refit_candidates == 0) return;
+  int failed = -1;
+  for (size_t r = 0; r < recs_.size(); ++r) {
+    if (fit->results[r].ok()) continue;
+    if (recs_[r].train) return;  // not a fit that simulates its training data
+    if (failed < 0) failed = static_cast<int>(r);
+  }
+  if (failed < 0) return;
+  const EvaluationResult& failure = fit->results[static_cast<size_t>(failed)];
+  const std::string what = fmt::format("the calibration's best fit on training failed to simulate {} "
+                                       "(held out) from frame {}",
+                                       recs_[static_cast<size_t>(failed)].name, failure.failure_frame);
+  std::vector<EvaluationRecord> evaluations;
+  for (int64_t job : fit->jobs) {
+    for (EvaluationRecord& e : store_.Evaluations(job)) evaluations.push_back(std::move(e));
+  }
+  const std::vector<ParameterValues> candidates =
+      RankedByTrainingScore(evaluations, fit->values, o_.refit_candidates);
+  const size_t held = HeldOutIndices().size();
+  // In fixed batches, best first, so that the choice is the same at any
+  // thread count: the first candidate that simulates every held-out
+  // recording.
+  constexpr size_t kBatch = 8;
+  for (size_t begin = 0; begin < candidates.size(); begin += kBatch) {
+    const size_t end = std::min(candidates.size(), begin + kBatch);
+    const std::vector<ParameterValues> batch(candidates.begin() + static_cast<std::ptrdiff_t>(begin),
+                                             candidates.begin() + static_cast<std::ptrdiff_t>(end));
+    const std::vector<HeldOutScore> scores = ScoreOnHeldOut(batch, fit->effects);
+    for (size_t k = 0; k < batch.size(); ++k) {
+      bool ok = true;
+      for (size_t h = 0; h < held; ++h) ok = ok && scores[k * held + h].ok;
+      if (!ok) continue;
+      const double training_before = fit->XorSum(recs_, true);
+      fit->values = batch[k];
+      Measure(fit);
+      fit->refit = fmt::format(
+          "{}; refitted: of its next {} candidates by training XOR, number {} is the first that "
+          "simulates every held-out recording (training XOR {:.0f} -> {:.0f})",
+          what, candidates.size(), begin + k + 1, training_before, fit->XorSum(recs_, true));
+      return;
+    }
+  }
+  fit->refit = fmt::format("{}; none of its next {} candidates by training XOR simulates every "
+                           "held-out recording", what, candidates.size());
 }
 
 std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<ParameterValues>& sets,

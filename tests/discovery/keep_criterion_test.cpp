@@ -1,12 +1,21 @@
 // The keep rule's judge (discovery/src/keep_criterion.cpp) where the model
 // an effect is judged against fails on a held-out recording: the frames it
-// simulated are compared, and the verdict says so.
+// simulated are compared, and the verdict says so. And the refit of a fit
+// that fails on a held-out recording (StageCalibrator::RefitWhereHeldOutFails):
+// the best candidate on training that simulates there, or a note that none
+// does.
 
 #include "loop_stages.h"
+#include "loop_test_support.h"
+
+#include "calib/discovery/residual.h"
+#include "calib/results/store.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -79,6 +88,146 @@ TEST(KeepCriterion, AReferenceThatFailsOnAHeldOutRecordingIsComparedOverTheFrame
   const KeepCriterion::Verdict none = judge.Judge(broken, nullptr, candidate, 7);
   EXPECT_FALSE(none.eligible);
   EXPECT_NE(none.reason.find("no held-out frame to compare"), std::string::npos) << none.reason;
+}
+
+EvaluationRecord Candidate(int64_t id, const ParameterValues& parameters, double score) {
+  EvaluationRecord e;
+  e.id = id;
+  e.parameters = parameters;
+  e.ok = std::isfinite(score);
+  e.score = e.ok ? score : std::numeric_limits<double>::quiet_NaN();
+  if (!e.ok) {
+    e.failure_frame = 3;
+    e.reason = "a triangle inverted";
+  }
+  return e;
+}
+
+TEST(KeepCriterion, RankedByTrainingScoreIsDistinctBestFirstWithoutTheExcludedSet) {
+  const ParameterValues a{{"k", 1.0}}, b{{"k", 2.0}}, c{{"k", 3.0}}, d{{"k", 4.0}};
+  const std::vector<EvaluationRecord> evaluations = {
+      Candidate(0, c, 30.0), Candidate(1, a, 10.0), Candidate(2, d, std::nan("")),
+      Candidate(3, b, 20.0), Candidate(4, a, 10.0), Candidate(5, b, 15.0)};
+  EXPECT_EQ(RankedByTrainingScore(evaluations, {}, 10), (std::vector<ParameterValues>{a, b, c}))
+      << "failed ones left out, each set once at its best score";
+  EXPECT_EQ(RankedByTrainingScore(evaluations, a, 10), (std::vector<ParameterValues>{b, c}));
+  EXPECT_EQ(RankedByTrainingScore(evaluations, {}, 2), (std::vector<ParameterValues>{a, b}));
+  EXPECT_TRUE(RankedByTrainingScore(evaluations, {}, 0).empty());
+}
+
+// push_centre trained, push_offset held out; a stiff calibration of
+// push_centre with the implicit step simulates both.
+class Refit : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    PreparationOptions preparation;
+    preparation.cache_dir.clear();
+    for (const char* name : {"push_centre", "push_offset"}) {
+      LoopRecording r;
+      r.name = name;
+      r.train = recs_->empty();
+      r.prepared = std::make_shared<const PreparedRecording>(
+          PrepareRecording(LoadRecording(testing::ExamplesDir() / name), preparation));
+      r.residual_facts = std::make_shared<const RecordingResidualFacts>(ComputeResidualFacts(*r.prepared));
+      recs_->push_back(std::move(r));
+    }
+  }
+
+  static ParameterValues Stiff() {
+    return {{"k_D", 90581.063097572}, {"k_d", 20.754982960562106}, {"k_A", 210.80891451878225},
+            {"k_phi", 12379.743243423809}, {"mass", 0.2}, {"tau", 0.3421273516392307}};
+  }
+  // A set the model rejects (mass must be > 0): it fails everywhere.
+  static ParameterValues Rejected(double mass) {
+    ParameterValues v = Stiff();
+    v["mass"] = mass;
+    return v;
+  }
+  // A fit that simulates the training recording and fails on the held-out
+  // one from frame 12, with `values`, calibrated by the job `job`.
+  static Fit FailingFit(const ParameterValues& values, int64_t job) {
+    Fit fit;
+    fit.values = values;
+    fit.jobs = {job};
+    EvaluationResult train;
+    train.status = EvaluationStatus::kOk;
+    train.xor_sum = 1000;
+    EvaluationResult held_out;
+    held_out.status = EvaluationStatus::kFailed;
+    held_out.failure_frame = 12;
+    held_out.failure_reason = "the mesh snapped through";
+    fit.results = {train, held_out};
+    return fit;
+  }
+
+  void Run(Fit* fit, int refit_candidates, ResultStore& store) const {
+    LoopOptions options;
+    options.refit_candidates = refit_candidates;
+    const KeepCriterion criterion(options, *recs_);
+    const SearchScales scales;
+    const LoopLog log;
+    const StageCalibrator calibrator(options, *recs_, scales, criterion, store, 2, log);
+    calibrator.RefitWhereHeldOutFails(fit);
+  }
+
+  static inline std::unique_ptr<std::vector<LoopRecording>> recs_ =
+      std::make_unique<std::vector<LoopRecording>>();
+};
+
+TEST_F(Refit, TakesTheBestCandidateOnTrainingThatSimulatesEveryHeldOutRecording) {
+  ResultStore store(calib::testing::ScratchDir("refit_best") / "store.sqlite");
+  const int64_t job = store.CreateJob("base", nlohmann::json::object());
+  ParameterValues softer = Stiff();
+  softer["k_D"] *= 0.5;
+  const std::vector<EvaluationRecord> history = {
+      Candidate(0, Rejected(-1.0), 100.0),     // best on training, fails held out
+      Candidate(1, Stiff(), std::nan("")),     // failed on training: never a candidate
+      Candidate(2, softer, 300.0), Candidate(3, Stiff(), 200.0), Candidate(4, Stiff(), 250.0)};
+  store.RecordEvaluations(job, history);
+
+  Fit fit = FailingFit(Rejected(-2.0), job);
+  Run(&fit, 24, store);
+  EXPECT_EQ(fit.values, Stiff()) << fit.refit;
+  EXPECT_TRUE(fit.AllOk()) << "measured again on every recording";
+  EXPECT_GT(fit.results[1].xor_sum, 0.0);
+  EXPECT_NE(fit.refit.find("failed to simulate push_offset (held out) from frame 12"), std::string::npos)
+      << fit.refit;
+  EXPECT_NE(fit.refit.find("of its next 3 candidates by training XOR, number 2 is the first that "
+                           "simulates every held-out recording"),
+            std::string::npos)
+      << fit.refit;
+}
+
+TEST_F(Refit, SaysSoWhereNoCandidateSimulatesAndLeavesTheFitAlone) {
+  ResultStore store(calib::testing::ScratchDir("refit_none") / "store.sqlite");
+  const int64_t job = store.CreateJob("base", nlohmann::json::object());
+  const std::vector<EvaluationRecord> history = {Candidate(0, Rejected(-1.0), 100.0),
+                                                 Candidate(1, Rejected(-3.0), 150.0),
+                                                 Candidate(2, Stiff(), 200.0)};
+  store.RecordEvaluations(job, history);
+
+  // Only the two best are tried: neither simulates.
+  Fit fit = FailingFit(Rejected(-2.0), job);
+  Run(&fit, 2, store);
+  EXPECT_EQ(fit.values, Rejected(-2.0));
+  EXPECT_FALSE(fit.AllOk());
+  EXPECT_NE(fit.refit.find("none of its next 2 candidates by training XOR simulates every held-out "
+                           "recording"),
+            std::string::npos)
+      << fit.refit;
+
+  // Off: the failing fit is left to the judge as it is.
+  Fit off = FailingFit(Rejected(-2.0), job);
+  Run(&off, 0, store);
+  EXPECT_EQ(off.values, Rejected(-2.0));
+  EXPECT_TRUE(off.refit.empty()) << off.refit;
+
+  // A fit that fails on its training recording is not refitted.
+  Fit broken = FailingFit(Rejected(-2.0), job);
+  broken.results[0].status = EvaluationStatus::kFailed;
+  Run(&broken, 24, store);
+  EXPECT_EQ(broken.values, Rejected(-2.0));
+  EXPECT_TRUE(broken.refit.empty()) << broken.refit;
 }
 
 }  // namespace

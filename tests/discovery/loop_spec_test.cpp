@@ -35,6 +35,7 @@ TEST(LoopSpec, KeysLeftOutTakeTheLoopsDefaults) {
   EXPECT_EQ(o.min_relative_drop, defaults.min_relative_drop);
   EXPECT_EQ(o.held_out_stretch, defaults.held_out_stretch);
   EXPECT_EQ(o.equally_good_fits, defaults.equally_good_fits);
+  EXPECT_EQ(o.refit_candidates, defaults.refit_candidates);
   EXPECT_EQ(o.restarts, defaults.restarts);
   EXPECT_EQ(o.overlays_per_recording, defaults.overlays_per_recording);
   EXPECT_EQ(o.simulation.outline_contact, defaults.simulation.outline_contact);
@@ -62,6 +63,7 @@ fdr: 0.1
 min_drop: 0.03
 held_out_stretch: 0.25
 equally_good_fits: 4
+refit_candidates: 5
 restarts: 2
 overlays: 0
 outline_contact: false
@@ -85,6 +87,7 @@ html: false
   EXPECT_EQ(o.min_relative_drop, 0.03);
   EXPECT_EQ(o.held_out_stretch, 0.25);
   EXPECT_EQ(o.equally_good_fits, 4);
+  EXPECT_EQ(o.refit_candidates, 5);
   EXPECT_EQ(o.restarts, 2);
   EXPECT_EQ(o.overlays_per_recording, 0);
   EXPECT_FALSE(o.simulation.outline_contact);

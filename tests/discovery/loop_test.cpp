@@ -399,6 +399,9 @@ TEST(Loop, BadOptionsAreNamed) {
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
   o.min_relative_drop = -0.1;
   EXPECT_NE(message(o).find("--min-drop = -0.1"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.refit_candidates = -1;
+  EXPECT_NE(message(o).find("--refit-candidates = -1"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "absent_recording"}, {}, "loop_bad");
   EXPECT_NE(message(o).find("absent_recording"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");

@@ -17,6 +17,14 @@ namespace calib {
 /// mean over frames 1..n-2 (0 with fewer than 3 frames).
 double SegmentationNoisePx(const std::vector<BitMask>& object_masks);
 
+/// The successful `evaluations` of a calibration (one or more jobs of the
+/// same model, scored on the same training recordings), distinct and best
+/// first, without `excluded`: at most `limit` of them. Deterministic: ties
+/// keep the order of `evaluations`. The candidates of a refit where the
+/// best fails on a held-out recording (LoopOptions::refit_candidates).
+std::vector<ParameterValues> RankedByTrainingScore(const std::vector<EvaluationRecord>& evaluations,
+                                                   const ParameterValues& excluded, int limit);
+
 /// The parameter sets of a calibration as good as its best on the training
 /// recordings: the successful `evaluations` (of one or more jobs of the same
 /// model) whose score is within `tolerance` of the lowest, distinct, best

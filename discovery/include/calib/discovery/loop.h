@@ -96,6 +96,15 @@ struct LoopOptions {
   /// held-out recordings, to show how far the training data pin the
   /// held-out error down. 0: not measured.
   int equally_good_fits = 0;
+  /// Where a calibration's best fit on the training recordings fails to
+  /// simulate a held-out recording (a fit that snaps through on another
+  /// push), the effect is refitted within the parameters that simulate:
+  /// up to this many of the calibration's next best candidates by training
+  /// score are run on the held-out recordings, best first, and the first
+  /// that simulates every one of them is the fit. The held-out recordings
+  /// answer only "does it simulate"; their scores play no part. 0: the
+  /// failing fit is judged as it is (and rejected).
+  int refit_candidates = 24;
   /// Independent searches of a calibration from scratch (the base model),
   /// each with the whole `budget`: the first from the box's centre, the
   /// others from seeded points of the box (RestartStart). The best on the
