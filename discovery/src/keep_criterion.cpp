@@ -113,6 +113,13 @@ std::vector<std::vector<double>> Fit::HeldOutFrameErrors(const std::vector<LoopR
   return out;
 }
 
+bool ComparableOnHeldOut(bool ok, int failure_frame, const Fit* reference, size_t r) {
+  if (ok) return true;
+  if (reference == nullptr || r >= reference->results.size()) return false;
+  const EvaluationResult& e = reference->results[r];
+  return !e.ok() && failure_frame >= e.failure_frame;
+}
+
 bool Fit::AllOk() const {
   return std::all_of(results.begin(), results.end(), [](const EvaluationResult& e) { return e.ok(); });
 }
@@ -132,25 +139,27 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
   const Fit& current = ablation != nullptr ? *ablation : previous;
   Verdict v;
   if (!candidate.AllOk()) {
-    // Named with the recording and the frame: where the fit breaks is what
-    // a refit within the bounds that simulate would start from.
+    // Named with the recording and the frame. A held-out recording where
+    // the reference fails too, no later, is compared below over the frames
+    // the reference simulated.
     for (size_t r = 0; r < candidate.results.size() && r < recs_.size(); ++r) {
       const EvaluationResult& e = candidate.results[r];
-      if (e.ok()) continue;
+      if (e.ok() || (!recs_[r].train && ComparableOnHeldOut(false, e.failure_frame, &current, r))) continue;
       v.reason = fmt::format("the calibrated model fails to simulate {} ({}) from frame {}: {}",
                              recs_[r].name, recs_[r].train ? "training" : "held out",
                              e.failure_frame, e.failure_reason);
       break;
     }
-    return v;
+    if (!v.reason.empty()) return v;
   }
   const double train_before = current.XorSum(recs_, true);
   const double train_after = candidate.XorSum(recs_, true);
   std::vector<std::vector<double>> old_errors = current.HeldOutFrameErrors(recs_);
   std::vector<std::vector<double>> new_errors = candidate.HeldOutFrameErrors(recs_);
-  // The candidate simulates every held-out frame. The reference may not: a
-  // base fit of one push need not simulate another. Then the frames it
-  // simulated are compared, and the sums are over those.
+  // The candidate simulates every held-out frame the reference does. The
+  // reference may fail on a held-out recording (a base fit of one push need
+  // not simulate another): then the frames it simulated are compared, and
+  // the sums are over those.
   std::string compared;
   int compared_frames = 0;
   for (size_t i = 0, r = 0; r < recs_.size(); ++r) {
@@ -158,10 +167,13 @@ KeepCriterion::Verdict KeepCriterion::Judge(const Fit& previous, const Fit* abla
     const EvaluationResult& e = current.results[r];
     if (!e.ok()) {
       new_errors[i].resize(std::min(new_errors[i].size(), old_errors[i].size()));
-      compared += fmt::format("{}the previous model fails on {} from frame {} ({}): compared over the {} "
+      const EvaluationResult& c = candidate.results[r];
+      compared += fmt::format("{}the previous model fails on {} from frame {} ({}){}: compared over the {} "
                               "frames before",
                               compared.empty() ? "" : "; ", recs_[r].name, e.failure_frame,
-                              e.failure_reason, old_errors[i].size());
+                              e.failure_reason,
+                              c.ok() ? "" : fmt::format(", this one from frame {}", c.failure_frame),
+                              old_errors[i].size());
     }
     compared_frames += static_cast<int>(old_errors[i].size());
     ++i;

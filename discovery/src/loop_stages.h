@@ -86,7 +86,15 @@ struct HeldOutScore {
   bool ok = false;
   double xor_sum = 0.0;
   double mean_iou = 0.0;
+  int failure_frame = -1;  ///< failed: the first frame not simulated
 };
+
+/// Whether a fit whose result on held-out recording `r` is `result` can
+/// be compared there with `reference` (null: none given): it simulates
+/// the whole recording, or the reference fails there too, no later than
+/// it does (the keep rule then compares the frames the reference
+/// simulated).
+bool ComparableOnHeldOut(bool ok, int failure_frame, const Fit* reference, size_t r);
 
 /// Judges an effect: does recalibrating with it lower the held-out error?
 /// Each candidate gets a p-value from a paired block test of the per-frame
@@ -141,11 +149,13 @@ class StageCalibrator {
   /// The fit's results and residuals on every recording.
   void Measure(Fit* fit) const;
   /// Where `fit` simulates every training recording but fails on a
-  /// held-out one: the first of its calibration's next best candidates by
-  /// training score (RankedByTrainingScore) that simulates every held-out
-  /// recording becomes the fit, measured again (LoopOptions::refit_candidates).
-  /// Says what it did in fit->refit.
-  void RefitWhereHeldOutFails(Fit* fit) const;
+  /// held-out one, and not no earlier than `reference` (the model it will be
+  /// judged against; may be null) fails there: the first of its
+  /// calibration's next best candidates by training score
+  /// (RankedByTrainingScore) that simulates every held-out recording, or
+  /// as far as the reference does, becomes the fit, measured again
+  /// (LoopOptions::refit_candidates). Says what it did in fit->refit.
+  void RefitWhereHeldOutFails(Fit* fit, const Fit* reference) const;
   /// The spread of the held-out error over the fit's equally good fits.
   void MeasureEquallyGood(Fit* fit) const;
   /// How far a 0.1 % nudge of each of the fit's values moves its held-out

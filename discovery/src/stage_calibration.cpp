@@ -398,6 +398,7 @@ bool StageCalibrator::StartsCold(const std::vector<std::string>& effects, const 
 
 Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm) {
   const Clock::time_point start = Clock::now();
+  const Fit* const previous = warm;
   if (warm != nullptr && StartsCold(effects, *warm)) warm = nullptr;
   SearchScales scales = scales_;
   if (warm != nullptr) scales.reference = warm->values;
@@ -498,7 +499,7 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
   Measure(&fit);
   // A swing's jobs score shorter horizons than the whole recordings, so
   // their candidates do not rank by the fit's training score.
-  if (!effects.empty() && !swing) RefitWhereHeldOutFails(&fit);
+  if (!effects.empty() && !swing) RefitWhereHeldOutFails(&fit, previous);
   fit.at_bounds = DiagnoseFit(settings, fit.values, {}).at_bounds;
   fit.seconds = Since(start);
   return fit;
@@ -563,13 +564,16 @@ std::unique_ptr<BatchEvaluator> StageCalibrator::MakeEvaluator(const Objective& 
   return std::make_unique<ThreadBatchEvaluator>(objective, threads_);
 }
 
-void StageCalibrator::RefitWhereHeldOutFails(Fit* fit) const {
+void StageCalibrator::RefitWhereHeldOutFails(Fit* fit, const Fit* reference) const {
   if (o_.refit_candidates == 0) return;
   int failed = -1;
   for (size_t r = 0; r < recs_.size(); ++r) {
-    if (fit->results[r].ok()) continue;
+    const EvaluationResult& e = fit->results[r];
+    if (e.ok()) continue;
     if (recs_[r].train) return;  // not a fit that simulates its training data
-    if (failed < 0) failed = static_cast<int>(r);
+    if (failed < 0 && !ComparableOnHeldOut(false, e.failure_frame, reference, r)) {
+      failed = static_cast<int>(r);
+    }
   }
   if (failed < 0) return;
   const EvaluationResult& failure = fit->results[static_cast<size_t>(failed)];
@@ -582,10 +586,10 @@ void StageCalibrator::RefitWhereHeldOutFails(Fit* fit) const {
   }
   const std::vector<ParameterValues> candidates =
       RankedByTrainingScore(evaluations, fit->values, o_.refit_candidates);
-  const size_t held = HeldOutIndices().size();
+  const std::vector<int> held = HeldOutIndices();
   // In fixed batches, best first, so that the choice is the same at any
   // thread count: the first candidate that simulates every held-out
-  // recording.
+  // recording, or as far as the reference does.
   constexpr size_t kBatch = 8;
   for (size_t begin = 0; begin < candidates.size(); begin += kBatch) {
     const size_t end = std::min(candidates.size(), begin + kBatch);
@@ -594,15 +598,20 @@ void StageCalibrator::RefitWhereHeldOutFails(Fit* fit) const {
     const std::vector<HeldOutScore> scores = ScoreOnHeldOut(batch, fit->effects);
     for (size_t k = 0; k < batch.size(); ++k) {
       bool ok = true;
-      for (size_t h = 0; h < held; ++h) ok = ok && scores[k * held + h].ok;
+      for (size_t h = 0; h < held.size(); ++h) {
+        const HeldOutScore& s = scores[k * held.size() + h];
+        ok = ok && ComparableOnHeldOut(s.ok, s.failure_frame, reference, static_cast<size_t>(held[h]));
+      }
       if (!ok) continue;
       const double training_before = fit->XorSum(recs_, true);
       fit->values = batch[k];
       Measure(fit);
+      const bool reference_fails = reference != nullptr && !reference->AllOk();
       fit->refit = fmt::format(
           "{}; refitted: of its next {} candidates by training XOR, number {} is the first that "
-          "simulates every held-out recording (training XOR {:.0f} -> {:.0f})",
-          what, candidates.size(), begin + k + 1, training_before, fit->XorSum(recs_, true));
+          "simulates every held-out recording{} (training XOR {:.0f} -> {:.0f})",
+          what, candidates.size(), begin + k + 1, reference_fails ? " as far as the previous model does" : "",
+          training_before, fit->XorSum(recs_, true));
       return;
     }
   }
@@ -632,6 +641,7 @@ std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<Para
             s.ok = c.result.ok();
             s.xor_sum = std::isfinite(c.result.score) ? c.result.score : 0.0;
             s.mean_iou = c.result.iou.mean;
+            s.failure_frame = c.result.failure_frame;
           }
         },
         /*tick_s=*/1.0);
@@ -643,9 +653,11 @@ std::vector<HeldOutScore> StageCalibrator::ScoreOnHeldOut(const std::vector<Para
 // searched value times 1 +- 0.1 %, one at a time, re-scored on the held-out recordings;
 // the largest move of the held-out XOR sum and the value that made it. A
 // nudge that fails to simulate (or leaves the value's range) moves it by
-// the whole sum. Measured where whole recordings are held out.
+// the whole sum. Measured where whole recordings are held out and the fit
+// simulates every one of them (a fit that fails there has no held-out sum
+// to move: 0, not measured).
 void StageCalibrator::MeasureSensitivity(Fit* fit) const {
-  if (!WholeRecordingsHeldOut()) return;
+  if (!WholeRecordingsHeldOut() || !std::isfinite(fit->XorSum(recs_, false))) return;
   const std::vector<int> held = HeldOutIndices();
   std::vector<ParameterValues> nudged;
   std::vector<std::string> names;

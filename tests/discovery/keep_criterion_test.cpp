@@ -1,6 +1,7 @@
 // The keep rule's judge (discovery/src/keep_criterion.cpp) where the model
 // an effect is judged against fails on a held-out recording: the frames it
-// simulated are compared, and the verdict says so. And the refit of a fit
+// simulated are compared (also with a candidate that fails there no
+// earlier), and the verdict says so. And the refit of a fit
 // that fails on a held-out recording (StageCalibrator::RefitWhereHeldOutFails):
 // the best candidate on training that simulates there, or a note that none
 // does.
@@ -50,13 +51,22 @@ Fit FitWith(EvaluationResult train, EvaluationResult held_out) {
   return fit;
 }
 
-TEST(KeepCriterion, AReferenceThatFailsOnAHeldOutRecordingIsComparedOverTheFramesItSimulated) {
+// push-a trained, push-b held out; any drop counts (no relevance margin).
+struct TwoPushes {
+  TwoPushes() {
+    options.min_relative_drop = 0.0;
+    recs[0].name = "push-a";
+    recs[1].name = "push-b";
+    recs[1].train = false;
+  }
   LoopOptions options;
-  options.min_relative_drop = 0.0;
-  std::vector<LoopRecording> recs(2);
-  recs[0].name = "push-a";
-  recs[1].name = "push-b";
-  recs[1].train = false;
+  std::vector<LoopRecording> recs = std::vector<LoopRecording>(2);
+};
+
+TEST(KeepCriterion, AReferenceThatFailsOnAHeldOutRecordingIsComparedOverTheFramesItSimulated) {
+  const TwoPushes pushes;
+  const LoopOptions& options = pushes.options;
+  const std::vector<LoopRecording>& recs = pushes.recs;
   // 40 held-out frames; the previous model fails from frame 30.
   std::vector<double> before(30, 100.0), after(40, 60.0);
   const Fit previous = FitWith(Result({500.0}, 1, 0.9), Result(before, 40, 0.90));
@@ -88,6 +98,36 @@ TEST(KeepCriterion, AReferenceThatFailsOnAHeldOutRecordingIsComparedOverTheFrame
   const KeepCriterion::Verdict none = judge.Judge(broken, nullptr, candidate, 7);
   EXPECT_FALSE(none.eligible);
   EXPECT_NE(none.reason.find("no held-out frame to compare"), std::string::npos) << none.reason;
+}
+
+TEST(KeepCriterion, ACandidateFailingNoEarlierThanAFailingReferenceIsComparedOverItsFrames) {
+  const TwoPushes pushes;
+  const KeepCriterion judge(pushes.options, pushes.recs);
+  // The previous model fails on the held-out push from frame 30.
+  const Fit previous = FitWith(Result({500.0}, 1, 0.9), Result(std::vector<double>(30, 100.0), 40, 0.90));
+
+  // The candidate fails there too, from frame 35: the 30 frames compared.
+  const Fit later = FitWith(Result({400.0}, 1, 0.9), Result(std::vector<double>(35, 60.0), 40, 0.95));
+  const KeepCriterion::Verdict v = judge.Judge(previous, nullptr, later, 7);
+  EXPECT_TRUE(v.eligible) << v.reason;
+  EXPECT_EQ(v.test.frames, 30);
+  EXPECT_DOUBLE_EQ(v.after, 1800.0);
+  EXPECT_NE(v.reason.find("the previous model fails on push-b from frame 30 (a triangle inverted), this "
+                          "one from frame 35: compared over the 30 frames before"),
+            std::string::npos)
+      << v.reason;
+
+  // From frame 25, earlier than the reference: rejected, named.
+  const Fit earlier = FitWith(Result({400.0}, 1, 0.9), Result(std::vector<double>(25, 60.0), 40, 0.95));
+  const KeepCriterion::Verdict e = judge.Judge(previous, nullptr, earlier, 7);
+  EXPECT_FALSE(e.eligible);
+  EXPECT_EQ(e.reason,
+            "the calibrated model fails to simulate push-b (held out) from frame 25: a triangle inverted");
+
+  // Against a reference that simulates the whole push, any failure there
+  // is a rejection.
+  const Fit whole = FitWith(Result({500.0}, 1, 0.9), Result(std::vector<double>(40, 100.0), 40, 0.90));
+  EXPECT_FALSE(judge.Judge(whole, nullptr, later, 7).eligible);
 }
 
 EvaluationRecord Candidate(int64_t id, const ParameterValues& parameters, double score) {
@@ -160,14 +200,17 @@ class Refit : public ::testing::Test {
     return fit;
   }
 
-  void Run(Fit* fit, int refit_candidates, ResultStore& store) const {
+  // The refit, then (with `sensitivity`) MeasureSensitivity.
+  void Run(Fit* fit, int refit_candidates, ResultStore& store, const Fit* reference = nullptr,
+           bool sensitivity = false) const {
     LoopOptions options;
     options.refit_candidates = refit_candidates;
     const KeepCriterion criterion(options, *recs_);
     const SearchScales scales;
     const LoopLog log;
     const StageCalibrator calibrator(options, *recs_, scales, criterion, store, 2, log);
-    calibrator.RefitWhereHeldOutFails(fit);
+    calibrator.RefitWhereHeldOutFails(fit, reference);
+    if (sensitivity) calibrator.MeasureSensitivity(fit);
   }
 
   static inline std::unique_ptr<std::vector<LoopRecording>> recs_ =
@@ -228,6 +271,41 @@ TEST_F(Refit, SaysSoWhereNoCandidateSimulatesAndLeavesTheFitAlone) {
   Run(&broken, 24, store);
   EXPECT_EQ(broken.values, Rejected(-2.0));
   EXPECT_TRUE(broken.refit.empty()) << broken.refit;
+}
+
+TEST_F(Refit, NotWhereTheReferenceFailsNoLaterAndAsFarAsItWhereItFailsLater) {
+  ResultStore store(calib::testing::ScratchDir("refit_reference") / "store.sqlite");
+  const int64_t job = store.CreateJob("base", nlohmann::json::object());
+  const std::vector<EvaluationRecord> history = {Candidate(0, Rejected(-1.0), 100.0),
+                                                 Candidate(1, Stiff(), 200.0)};
+  store.RecordEvaluations(job, history);
+  // A previous model failing on the held-out push from frame `frame`.
+  auto reference_failing_from = [](int frame) {
+    Fit reference = FailingFit(Stiff(), 0);
+    reference.results[1].failure_frame = frame;
+    return reference;
+  };
+
+  // The fit fails from frame 12, the reference from 10: comparable, kept
+  // as it is for the judge (which compares the 10 frames).
+  const Fit earlier = reference_failing_from(10);
+  Fit fit = FailingFit(Rejected(-2.0), job);
+  Run(&fit, 24, store, &earlier, /*sensitivity=*/true);
+  EXPECT_EQ(fit.values, Rejected(-2.0));
+  EXPECT_TRUE(fit.refit.empty()) << fit.refit;
+  EXPECT_EQ(fit.holdout_sensitivity_px, 0.0) << "a fit that fails held out has no held-out sum to move";
+
+  // The reference simulates 20 frames: refitted, with the first candidate
+  // that simulates at least as far.
+  const Fit later = reference_failing_from(20);
+  Fit refitted = FailingFit(Rejected(-2.0), job);
+  Run(&refitted, 24, store, &later, /*sensitivity=*/true);
+  EXPECT_EQ(refitted.values, Stiff()) << refitted.refit;
+  EXPECT_NE(refitted.refit.find("number 2 is the first that simulates every held-out recording as far "
+                                "as the previous model does"),
+            std::string::npos)
+      << refitted.refit;
+  EXPECT_GT(refitted.holdout_sensitivity_px, 0.0) << "measured once the fit simulates";
 }
 
 }  // namespace
