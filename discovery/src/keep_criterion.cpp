@@ -36,16 +36,26 @@ double SegmentationNoisePx(const std::vector<BitMask>& masks) {
   return sum / static_cast<double>(flicker.size());
 }
 
-std::vector<ParameterValues> RankedByTrainingScore(const std::vector<EvaluationRecord>& evaluations,
-                                                   const ParameterValues& excluded, int limit) {
+namespace {
+
+// The successful evaluations with a finite score, lowest score first; ties
+// keep the order of `evaluations`.
+std::vector<const EvaluationRecord*> SucceededBestFirst(const std::vector<EvaluationRecord>& evaluations) {
   std::vector<const EvaluationRecord*> ok;
   for (const EvaluationRecord& e : evaluations) {
     if (e.ok && std::isfinite(e.score)) ok.push_back(&e);
   }
   std::stable_sort(ok.begin(), ok.end(),
                    [](const EvaluationRecord* a, const EvaluationRecord* b) { return a->score < b->score; });
+  return ok;
+}
+
+}  // namespace
+
+std::vector<ParameterValues> RankedByTrainingScore(const std::vector<EvaluationRecord>& evaluations,
+                                                   const ParameterValues& excluded, int limit) {
   std::vector<ParameterValues> out;
-  for (const EvaluationRecord* e : ok) {
+  for (const EvaluationRecord* e : SucceededBestFirst(evaluations)) {
     if (static_cast<int>(out.size()) >= limit) break;
     if (e->parameters == excluded || std::find(out.begin(), out.end(), e->parameters) != out.end()) continue;
     out.push_back(e->parameters);
@@ -55,13 +65,8 @@ std::vector<ParameterValues> RankedByTrainingScore(const std::vector<EvaluationR
 
 std::vector<ParameterValues> SelectEquallyGoodFits(const std::vector<EvaluationRecord>& evaluations,
                                                    double tolerance, int limit) {
-  std::vector<const EvaluationRecord*> ok;
-  for (const EvaluationRecord& e : evaluations) {
-    if (e.ok && std::isfinite(e.score)) ok.push_back(&e);
-  }
+  const std::vector<const EvaluationRecord*> ok = SucceededBestFirst(evaluations);
   if (ok.empty() || limit <= 0) return {};
-  std::stable_sort(ok.begin(), ok.end(),
-                   [](const EvaluationRecord* a, const EvaluationRecord* b) { return a->score < b->score; });
   const double cutoff = ok.front()->score + std::max(tolerance, 0.0);
   std::vector<const ParameterValues*> distinct;
   for (const EvaluationRecord* e : ok) {

@@ -89,11 +89,11 @@ struct HeldOutScore {
   int failure_frame = -1;  ///< failed: the first frame not simulated
 };
 
-/// Whether a fit whose result on held-out recording `r` is `result` can
-/// be compared there with `reference` (null: none given): it simulates
-/// the whole recording, or the reference fails there too, no later than
-/// it does (the keep rule then compares the frames the reference
-/// simulated).
+/// Whether a fit that simulates held-out recording `r` whole (`ok`), or
+/// fails there from `failure_frame`, can be compared there with
+/// `reference` (null: none given): it simulates the whole recording, or
+/// the reference fails there too, no later than it does (the keep rule
+/// then compares the frames the reference simulated).
 bool ComparableOnHeldOut(bool ok, int failure_frame, const Fit* reference, size_t r);
 
 /// Judges an effect: does recalibrating with it lower the held-out error?
@@ -149,8 +149,9 @@ class StageCalibrator {
   /// The fit's results and residuals on every recording.
   void Measure(Fit* fit) const;
   /// Where `fit` simulates every training recording but fails on a
-  /// held-out one, and not no earlier than `reference` (the model it will be
-  /// judged against; may be null) fails there: the first of its
+  /// held-out one where it cannot be compared with `reference` (the model
+  /// it will be judged against, may be null; ComparableOnHeldOut): the
+  /// first of its
   /// calibration's next best candidates by training score
   /// (RankedByTrainingScore) that simulates every held-out recording, or
   /// as far as the reference does, becomes the fit, measured again
