@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 
 namespace calib {
 
@@ -22,7 +23,7 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
                : num_clamped == 1 ? FreeTurn::kPivot
                                   : FreeTurn::kNone;
 
-  if (edge_stiffness) shape_factor_.analyzePattern(assembly_.upper());
+  if (edge_stiffness) shape_factor_.Analyse(assembly_.upper());
   factor_.analyzePattern(assembly_.lower());
   rhs_.setZero(m);
   solution_.setZero(m);
@@ -44,7 +45,9 @@ bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
   factor_view_ = {};
   if (assembly_.lower().rows() == 0) return true;
   factor_.factorize(assembly_.lower());
-  return Factorized(factor_, params, h, error);
+  const bool ok = factor_.info() == Eigen::Success && factor_.vectorD().minCoeff() > 0.0;
+  return Factorized(ok, ok ? ldlt::ViewOf(factor_, &factor_extras_) : ldlt::FactorView{}, params, h,
+                    error);
 }
 
 void ImplicitFirstOrderStep::ForgetSolves() {
@@ -53,11 +56,11 @@ void ImplicitFirstOrderStep::ForgetSolves() {
   inverse_turn_valid_ = false;
 }
 
-template <class Factor>
-bool ImplicitFirstOrderStep::Factorized(const Factor& factor, const ModelParameters& params,
-                                        double h, std::string* error) {
-  if (factor.info() == Eigen::Success && factor.vectorD().minCoeff() > 0.0) {
-    factor_view_ = ldlt::ViewOf(factor, &factor_extras_);
+bool ImplicitFirstOrderStep::Factorized(bool ok, const ldlt::FactorView& view,
+                                        const ModelParameters& params, double h,
+                                        std::string* error) {
+  if (ok) {
+    factor_view_ = view;
     return true;
   }
   factor_view_ = {};
@@ -75,8 +78,8 @@ bool ImplicitFirstOrderStep::FinishShapeStiffness(std::string* error) {
   ForgetSolves();
   factor_view_ = {};
   if (assembly_.upper().rows() == 0) return true;
-  shape_factor_.factorize(assembly_.upper());
-  if (!Factorized(shape_factor_, configured_params_, configured_h_, error)) {
+  const bool ok = shape_factor_.Factorize(assembly_.upper());
+  if (!Factorized(ok, shape_factor_.view(), configured_params_, configured_h_, error)) {
     if (error != nullptr) *error += " with the springs' stiffness at the current shape";
     return false;
   }
@@ -161,11 +164,35 @@ const double* ImplicitFirstOrderStep::InverseColumn(int unknown) {
   return inverse_columns_.data() + slot * m;
 }
 
+void ImplicitFirstOrderStep::SolveMissingColumns(const StepContact& contact,
+                                                 const Vec2& direction) {
+  std::array<int, 4> missing;  // two nodes' two coordinates at most
+  int num_missing = 0;
+  ForEachContactUnknown(contact, direction, assembly_.unknown_of_coordinate(), [&](int k, double) {
+    if (inverse_column_of_unknown_[k] < 0) missing[num_missing++] = k;
+  });
+  const size_t m = static_cast<size_t>(num_unknowns());
+  for (int a = 0; a + 1 < num_missing; a += 2) {
+    const int slot = static_cast<int>(inverse_columns_.size() / m);
+    inverse_columns_.resize(inverse_columns_.size() + 2 * m, 0.0);
+    double* first = inverse_columns_.data() + slot * m;
+    double* second = first + m;
+    std::fill(first, first + 2 * m, 0.0);
+    first[missing[a]] = 1.0;
+    second[missing[a + 1]] = 1.0;
+    ldlt::SolveInPlace2(factor_view_, first, second, solve_scratch_.data());
+    inverse_column_of_unknown_[missing[a]] = slot;
+    inverse_column_of_unknown_[missing[a + 1]] = slot + 1;
+  }
+  if (num_missing % 2 == 1) InverseColumn(missing[num_missing - 1]);
+}
+
 void ImplicitFirstOrderStep::ResponseOf(const StepContact& contact, const Vec2& direction,
                                         Eigen::Ref<Eigen::VectorXd> out) {
   // A^-1 of the unit force along `direction` at the contact point, from the
   // cached columns, less A^-1 of its turn: then as any force.
   const int m = num_unknowns();
+  SolveMissingColumns(contact, direction);
   out.setZero();
   double g_dot_turn = 0.0;
   ForEachContactUnknown(contact, direction, assembly_.unknown_of_coordinate(), [&](int k, double g) {

@@ -215,4 +215,103 @@ FactorView MakeView(int n, const int* outer, const int* inner, const double* val
   return view;
 }
 
+void Factorization::Analyse(const SparseMatrix& upper) {
+  const int n = static_cast<int>(upper.cols());
+  n_ = n;
+  // The elimination tree and L's column counts, as SimplicialLDLT's
+  // analyzePattern_preordered finds them.
+  std::vector<int> parent(n, -1), tags(n, -1), count(n, 0);
+  for (int k = 0; k < n; ++k) {
+    tags[k] = k;
+    for (SparseMatrix::InnerIterator it(upper, k); it; ++it) {
+      for (int i = static_cast<int>(it.index()); i < k && tags[i] != k; i = parent[i]) {
+        if (parent[i] == -1) parent[i] = k;
+        ++count[i];
+        tags[i] = k;
+      }
+    }
+  }
+  outer_.assign(n + 1, 0);
+  for (int k = 0; k < n; ++k) outer_[k + 1] = outer_[k] + count[k];
+  inner_.assign(outer_[n], 0);
+  value_.assign(outer_[n], 0.0);
+  d_.assign(n, 0.0);
+  y_.assign(n, 0.0);
+
+  // Each row's pattern in factorize_preordered's order: the paths from the
+  // row's entries up the tree, each path pushed on a stack that is then read
+  // from its top.
+  row_begin_.assign(n + 1, 0);
+  row_column_.clear();
+  row_position_.clear();
+  std::vector<int> pattern(n), filled(n, 0);
+  std::fill(tags.begin(), tags.end(), -1);
+  for (int k = 0; k < n; ++k) {
+    int top = n;
+    tags[k] = k;
+    for (SparseMatrix::InnerIterator it(upper, k); it; ++it) {
+      int i = static_cast<int>(it.index());
+      if (i > k) continue;
+      int len = 0;
+      for (; tags[i] != k; i = parent[i]) {
+        pattern[len++] = i;
+        tags[i] = k;
+      }
+      while (len > 0) pattern[--top] = pattern[--len];
+    }
+    for (; top < n; ++top) {
+      const int i = pattern[top];
+      const int p = outer_[i] + filled[i]++;
+      inner_[p] = k;
+      row_column_.push_back(i);
+      row_position_.push_back(p);
+    }
+    row_begin_[k + 1] = static_cast<int>(row_column_.size());
+  }
+
+  // The solve's order depends on the pattern only.
+  view_ = MakeView(n, outer_.data(), inner_.data(), value_.data(), d_.data(), &extras_);
+}
+
+bool Factorization::Factorize(const SparseMatrix& upper) {
+  const int* a_outer = upper.outerIndexPtr();
+  const int* a_inner = upper.innerIndexPtr();
+  const double* a_value = upper.valuePtr();
+  const int* a_count = upper.innerNonZeroPtr();  // null when compressed
+  const int* outer = outer_.data();
+  const int* inner = inner_.data();
+  double* value = value_.data();
+  double* y = y_.data();
+  bool ok = true;
+  for (int k = 0; k < n_; ++k) {
+    const int a_end = a_count == nullptr ? a_outer[k + 1] : a_outer[k] + a_count[k];
+    for (int q = a_outer[k]; q < a_end; ++q) {
+      if (a_inner[q] <= k) y[a_inner[q]] += a_value[q];
+    }
+    double d = y[k];
+    y[k] = 0.0;
+    for (int r = row_begin_[k]; r < row_begin_[k + 1]; ++r) {
+      const int i = row_column_[r];
+      const int end = row_position_[r];
+      const double yi = y[i];
+      y[i] = 0.0;
+      const double l_ki = yi / d_[i];
+      for (int p = outer[i]; p < end; ++p) y[inner[p]] -= value[p] * yi;
+      d -= l_ki * yi;
+      value[end] = l_ki;
+    }
+    d_[k] = d;
+    if (!(d > 0.0)) {
+      ok = false;  // Eigen stops at a zero pivot; a negative one fails its caller's test
+      break;
+    }
+  }
+  if (!ok) {
+    std::fill(y_.begin(), y_.end(), 0.0);
+    return false;
+  }
+  for (int i = 0; i < n_; ++i) extras_.inverse_d[i] = 1.0 / d_[i];
+  return true;
+}
+
 }  // namespace calib::ldlt

@@ -759,5 +759,65 @@ TEST(LdltSolve, GivesTheFactorsOwnSolveBitForBitAloneAndInPairs) {
   EXPECT_LT((a * x - rhs[0]).norm(), 1e-10 * rhs[0].norm());
 }
 
+// The re-linearised matrix's numeric refactorisation (ldlt::Factorization)
+// gives SimplicialLDLT's factor bit for bit, at shapes whose springs
+// stiffen unevenly, and fails on a matrix that is not positive definite
+// without spoiling the next factorisation.
+TEST(LdltFactorization, GivesSimplicialLdltsFactorBitForBitAtEveryShape) {
+  const Mesh mesh = MakeGridMesh(9, 6, 10.0, Vec2(40, 60));
+  const Model model(mesh);
+  std::vector<double> movable(mesh.NumNodes(), 1.0);
+  movable[3] = 0.0;
+  movable[4] = 0.0;
+  ImplicitStepAssembly assembly(model, movable, /*edge_stiffness=*/true);
+  assembly.Assemble(Mixed(), 1.0 / 300.0, nullptr);
+  ldlt::Factorization factorization;
+  factorization.Analyse(assembly.upper());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>>
+      eigen;
+  eigen.analyzePattern(assembly.upper());
+
+  const auto same_bits = [](const auto& a, const double* b, size_t n) {
+    return std::memcmp(a.data(), b, sizeof(double) * n) == 0;
+  };
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> stiffness(0.0, 4000.0), angle(0.0, 6.283);
+  for (int shape = 0; shape < 4; ++shape) {
+    assembly.BeginShapeStiffness();
+    for (int e = 0; e < mesh.NumEdges(); e += 1 + shape) {
+      const double a = angle(rng);
+      assembly.AddEdgeStiffness(e, stiffness(rng), Vec2(std::cos(a), std::sin(a)));
+    }
+    eigen.factorize(assembly.upper());
+    ASSERT_EQ(eigen.info(), Eigen::Success);
+    ASSERT_TRUE(factorization.Factorize(assembly.upper())) << "shape " << shape;
+    const auto& l = eigen.matrixL().nestedExpression();
+    const int n = static_cast<int>(l.cols());
+    ASSERT_EQ(factorization.view().n, n);
+    ASSERT_EQ(factorization.outer(),
+              std::vector<int>(l.outerIndexPtr(), l.outerIndexPtr() + n + 1));
+    ASSERT_EQ(factorization.inner(),
+              std::vector<int>(l.innerIndexPtr(), l.innerIndexPtr() + l.nonZeros()));
+    EXPECT_TRUE(same_bits(factorization.value(), l.valuePtr(), l.nonZeros())) << "shape " << shape;
+    EXPECT_TRUE(same_bits(factorization.d(), eigen.vectorD().data(), n)) << "shape " << shape;
+    Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(n, -1.0, 2.0), x = b;
+    ldlt::SolveInPlace(factorization.view(), x.data());
+    const Eigen::VectorXd expected = eigen.solve(b);
+    EXPECT_TRUE(same_bits(x, expected.data(), n)) << "shape " << shape;
+  }
+
+  // A matrix with a negative diagonal entry: refused, and the next one
+  // factorised as Eigen does.
+  Eigen::SparseMatrix<double> bad = assembly.upper();
+  bad.coeffRef(static_cast<int>(bad.cols()) / 2, static_cast<int>(bad.cols()) / 2) = -1e6;
+  EXPECT_FALSE(factorization.Factorize(bad));
+  assembly.BeginShapeStiffness();
+  eigen.factorize(assembly.upper());
+  ASSERT_TRUE(factorization.Factorize(assembly.upper()));
+  EXPECT_TRUE(same_bits(factorization.d(), eigen.vectorD().data(), factorization.d().size()));
+  EXPECT_TRUE(same_bits(factorization.value(), eigen.matrixL().nestedExpression().valuePtr(),
+                        factorization.value().size()));
+}
+
 }  // namespace
 }  // namespace calib

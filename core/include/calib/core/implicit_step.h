@@ -144,13 +144,13 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
   using SparseMatrix = Eigen::SparseMatrix<double>;
 
   ImplicitStepAssembly assembly_;
-  // The factors of the step's matrix A as configured (assembly_.lower())
-  // and as re-linearised at a shape (assembly_.upper()), their patterns
-  // analysed once.
+  // The factors of the step's matrix A as configured (assembly_.lower(),
+  // once per candidate) and as re-linearised at a shape (assembly_.upper(),
+  // every frame: its symbolic work done once), their patterns analysed once.
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> factor_;
-  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Upper, Eigen::NaturalOrdering<int>> shape_factor_;
+  ldlt::Factorization shape_factor_;
   // The last successful factorisation's arrays (ldlt_solve.h: the factor's
-  // own solve, bit for bit), and its 1 / D and backward order.
+  // own solve, bit for bit), and for factor_ its 1 / D and backward order.
   ldlt::FactorView factor_view_;
   ldlt::FactorExtras factor_extras_;
   std::vector<double> solve_scratch_;  // 2 m: SolveInPlace2's
@@ -161,9 +161,9 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
     ldlt::SolveInPlace(factor_view_, dest.data());
   }
   void ForgetSolves();  // the cached columns of A^-1 belong to the old matrix
-  template <class Factor>
-  bool Factorized(const Factor& factor, const ModelParameters& params, double h,
-                  std::string* error);  // and views the factor
+  // Views the factor (or says why it failed, with the parameters).
+  bool Factorized(bool ok, const ldlt::FactorView& view, const ModelParameters& params, double h,
+                  std::string* error);
   ModelParameters configured_params_;
   double configured_h_ = 0.0;
   Eigen::VectorXd rhs_, solution_;
@@ -184,6 +184,9 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
   std::vector<int> inverse_column_of_unknown_;  // slot, or -1
   std::vector<double> inverse_columns_;         // slot s: [s m, (s + 1) m)
   const double* InverseColumn(int unknown);
+  // Solves the columns `contact` needs along `direction` that are not
+  // cached yet, two in one pass (SolveInPlace2: each its own solve's bits).
+  void SolveMissingColumns(const StepContact& contact, const Vec2& direction);
 
   // The contacts' active set, and the step's response to a unit force at a
   // contact's point for it: A^-1 of the force (cached columns) less A^-1 of

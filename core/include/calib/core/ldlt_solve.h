@@ -21,6 +21,15 @@
 //
 // SolveInPlace2 solves for two right-hand sides in one pass over L, each
 // with exactly its own single solve's operations.
+//
+// Factorization factorises matrices of one sparsity pattern again and
+// again (the implicit step's matrix re-linearised every frame), with
+// SimplicialLDLT::factorize's IEEE operations in its order, so it gives the
+// same factor, bit for bit (tested). Eigen's up-looking factorisation finds
+// the pattern of each row of L in the elimination tree as it goes; that
+// depends only on the matrix's pattern, so Analyse finds it once, and each
+// Factorize is the arithmetic alone: for each row, the sparse triangular
+// solve over the row's pattern in Eigen's (topological) order.
 
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
@@ -81,5 +90,44 @@ FactorView ViewOf(const Solver& solver, FactorExtras* extras) {
   return MakeView(static_cast<int>(l.cols()), l.outerIndexPtr(), l.innerIndexPtr(), l.valuePtr(),
                   solver.vectorD().data(), extras);
 }
+
+/// LDL^T factorisations of symmetric matrices of one pattern, each given as
+/// its upper triangle compressed by columns, with natural ordering: the
+/// factor SimplicialLDLT<SparseMatrix, Upper, NaturalOrdering> computes,
+/// bit for bit. Analyse allocates; Factorize allocates nothing.
+class Factorization {
+ public:
+  using SparseMatrix = Eigen::SparseMatrix<double>;
+
+  /// The symbolic work for matrices with the pattern of `upper` (entries
+  /// below the diagonal are ignored, as Eigen's Upper view does).
+  void Analyse(const SparseMatrix& upper);
+
+  /// Factorises `upper` (the analysed pattern). False where a pivot is zero
+  /// (where Eigen stops with NumericalIssue) or negative; the view is then
+  /// not to be used.
+  bool Factorize(const SparseMatrix& upper);
+
+  /// The last factorisation, for SolveInPlace; valid until the next
+  /// Factorize or Analyse.
+  const FactorView& view() const { return view_; }
+  /// D of L D L^T (#n).
+  const std::vector<double>& d() const { return d_; }
+  /// L's strictly lower part, as FactorView's outer, inner and value.
+  const std::vector<int>& outer() const { return outer_; }
+  const std::vector<int>& inner() const { return inner_; }
+  const std::vector<double>& value() const { return value_; }
+
+ private:
+  int n_ = 0;
+  std::vector<int> outer_, inner_;  // L's pattern (rows ascending in each column)
+  std::vector<double> value_, d_;
+  // Row k of L: its entries' columns and their positions in value_, in the
+  // order Eigen computes them: [row_begin_[k], row_begin_[k + 1]).
+  std::vector<int> row_begin_, row_column_, row_position_;
+  std::vector<double> y_;  // the row being solved, zero between rows
+  FactorExtras extras_;
+  FactorView view_;
+};
 
 }  // namespace calib::ldlt
