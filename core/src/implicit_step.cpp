@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 
 namespace calib {
 
@@ -23,7 +24,18 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
                : num_clamped == 1 ? FreeTurn::kPivot
                                   : FreeTurn::kNone;
 
-  if (edge_stiffness) shape_factor_.Analyse(assembly_.upper());
+  if (edge_stiffness) {
+    const SparseMatrix& upper = assembly_.upper();
+    shape_factor_.Analyse(upper);
+    factorised_upper_.assign(upper.nonZeros(), 0.0);
+    row_change_.assign(upper.rows(), 0.0);
+    upper_diagonal_.assign(upper.rows(), -1);
+    for (int k = 0; k < upper.outerSize(); ++k) {
+      for (SparseMatrix::InnerIterator it(upper, k); it; ++it) {
+        if (it.index() == k) upper_diagonal_[k] = static_cast<int>(&it.value() - upper.valuePtr());
+      }
+    }
+  }
   factor_.analyzePattern(assembly_.lower());
   rhs_.setZero(m);
   solution_.setZero(m);
@@ -45,6 +57,13 @@ bool ImplicitFirstOrderStep::Configure(const ModelParameters& params, double h,
   factor_view_ = {};
   if (assembly_.lower().rows() == 0) return true;
   factor_.factorize(assembly_.lower());
+  shape_factorizations_ = 0;
+  if (!factorised_upper_.empty()) {
+    // The configured matrix is the one factorised, until a shape moves it.
+    assembly_.BeginShapeStiffness();
+    const double* upper = assembly_.upper().valuePtr();
+    std::copy(upper, upper + factorised_upper_.size(), factorised_upper_.begin());
+  }
   const bool ok = factor_.info() == Eigen::Success && factor_.vectorD().minCoeff() > 0.0;
   return Factorized(ok, ok ? ldlt::ViewOf(factor_, &factor_extras_) : ldlt::FactorView{}, params, h,
                     error);
@@ -74,10 +93,38 @@ bool ImplicitFirstOrderStep::Factorized(bool ok, const ldlt::FactorView& view,
   return false;
 }
 
+double ImplicitFirstOrderStep::ShapeChange() {
+  const SparseMatrix& upper = assembly_.upper();
+  const int* outer = upper.outerIndexPtr();
+  const int* inner = upper.innerIndexPtr();
+  const double* value = upper.valuePtr();
+  std::fill(row_change_.begin(), row_change_.end(), 0.0);
+  for (int k = 0; k < upper.outerSize(); ++k) {
+    for (int p = outer[k]; p < outer[k + 1]; ++p) {
+      const double change = std::abs(value[p] - factorised_upper_[p]);
+      row_change_[inner[p]] += change;
+      if (inner[p] != k) row_change_[k] += change;  // the symmetric entry
+    }
+  }
+  double largest = 0.0;
+  for (size_t i = 0; i < row_change_.size(); ++i) {
+    const double relative = row_change_[i] / factorised_upper_[upper_diagonal_[i]];
+    if (std::isnan(relative)) return relative;  // refactorised, and refused
+    largest = std::max(largest, relative);
+  }
+  return largest;
+}
+
 bool ImplicitFirstOrderStep::FinishShapeStiffness(std::string* error) {
+  if (assembly_.upper().rows() == 0) return true;
+  // The factor in use is that of the matrix factorised last (the
+  // configured one, or a shape's); it stays while the matrix moved little.
+  if (factor_view_.n > 0 && ShapeChange() <= shape_tolerance_) return true;
   ForgetSolves();
   factor_view_ = {};
-  if (assembly_.upper().rows() == 0) return true;
+  ++shape_factorizations_;
+  const double* upper = assembly_.upper().valuePtr();
+  std::copy(upper, upper + factorised_upper_.size(), factorised_upper_.begin());
   const bool ok = shape_factor_.Factorize(assembly_.upper());
   if (!Factorized(ok, shape_factor_.view(), configured_params_, configured_h_, error)) {
     if (error != nullptr) *error += " with the springs' stiffness at the current shape";

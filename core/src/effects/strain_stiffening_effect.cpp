@@ -8,7 +8,7 @@
 // inverse rest lengths precomputed (one square root, one division an edge).
 // Its stiffness along an edge, 3 k_3 strain^2 / D0^2, is zero at rest and
 // grows with the dent, so the implicit step takes it at the current shape
-// once a frame (EffectHooks::shape_stiffness).
+// once a frame (EffectHooks::shape_stiffness; refactorised where it moved).
 
 #include "calib/core/effect_kernels.h"
 #include "effect_factories.h"

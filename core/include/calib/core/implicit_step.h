@@ -48,7 +48,13 @@
 // their axial stiffness at the current shape (BeginShapeStiffness, the
 // effect's AddEdgeStiffness calls, FinishShapeStiffness: once a frame) on
 // top of the configured matrix and refactorises it: numerically only, on
-// the pattern analysed once, which holds every edge's node blocks.
+// the pattern analysed once, which holds every edge's node blocks, and only
+// where the matrix moved by more than a tolerance (5 % of a row's diagonal,
+// summed over the row) from the one factorised last. In between, the step
+// keeps the older stiffness, as it already does between the frames' starts:
+// the forces are exact, so the fixed points are the same, and a row that
+// drifts further is refactorised before its stiffness runs ahead of the
+// matrix by more than that share.
 
 #include "calib/core/contact_active_set.h"
 #include "calib/core/effects.h"
@@ -117,13 +123,26 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
   /// `edge_stiffness`): BeginShapeStiffness goes back to the configured
   /// matrix, AddEdgeStiffness adds an edge spring's axial stiffness k u u^T
   /// (k >= 0), FinishShapeStiffness refactorises (false with *error set
-  /// when the matrix is not positive definite). Allocates nothing but the
-  /// factorisation's scratch.
+  /// when the matrix is not positive definite) unless the matrix moved
+  /// little from the one factorised last: by at most `shape_tolerance()` in
+  /// every row, max_i sum_j |A_ij - F_ij| / F_ii (F the factorised matrix;
+  /// the configured one after Configure). A step with the kept factor is
+  /// the same linearly implicit step with its stiffness a frame or more
+  /// old (the forces stay exact, so its fixed points do not move).
+  /// Allocates nothing.
   void BeginShapeStiffness() { assembly_.BeginShapeStiffness(); }
   void AddEdgeStiffness(int edge, double k, const Vec2& u) override {
     assembly_.AddEdgeStiffness(edge, k, u);
   }
   bool FinishShapeStiffness(std::string* error);
+
+  /// The relative change of the re-linearised matrix below which its factor
+  /// is kept (FinishShapeStiffness); 0 refactorises at every change.
+  static constexpr double kDefaultShapeTolerance = 0.05;
+  double shape_tolerance() const { return shape_tolerance_; }
+  void set_shape_tolerance(double tolerance) { shape_tolerance_ = tolerance; }
+  /// Refactorisations of the re-linearised matrix since Configure.
+  int shape_factorizations() const { return shape_factorizations_; }
 
   /// Contacts held by one step at most; others are left to the projections.
   static constexpr int kMaxActiveContacts = ContactActiveSet::kMaxActiveContacts;
@@ -146,9 +165,18 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
   ImplicitStepAssembly assembly_;
   // The factors of the step's matrix A as configured (assembly_.lower(),
   // once per candidate) and as re-linearised at a shape (assembly_.upper(),
-  // every frame: its symbolic work done once), their patterns analysed once.
+  // where a frame's shape moved it: its symbolic work done once), their
+  // patterns analysed once.
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> factor_;
   ldlt::Factorization shape_factor_;
+  // The re-linearised matrix's factorised values (upper(), storage order),
+  // each row's sum of changes against them, its diagonal's positions.
+  std::vector<double> factorised_upper_, row_change_;
+  std::vector<int> upper_diagonal_;
+  double shape_tolerance_ = kDefaultShapeTolerance;
+  int shape_factorizations_ = 0;
+  // max_i sum_j |upper_ij - factorised_ij| / factorised_ii.
+  double ShapeChange();
   // The last successful factorisation's arrays (ldlt_solve.h: the factor's
   // own solve, bit for bit), and for factor_ its 1 / D and backward order.
   ldlt::FactorView factor_view_;

@@ -23,7 +23,7 @@
 // with exactly its own single solve's operations.
 //
 // Factorization factorises matrices of one sparsity pattern again and
-// again (the implicit step's matrix re-linearised every frame), with
+// again (the implicit step's matrix re-linearised at the frames' shapes), with
 // SimplicialLDLT::factorize's IEEE operations in its order, so it gives the
 // same factor, bit for bit (tested). Eigen's up-looking factorisation finds
 // the pattern of each row of L in the elimination tree as it goes; that
