@@ -128,13 +128,17 @@ template <bool kSeriesOnly>
 // force on node j (node i gets minus it), 1 / L^2 for the angle springs, and
 // the energy. The arrays are parameters so that __restrict holds (GCC keeps
 // it through inlining, not for block-scope pointers).
+// With kScaled, edge e's k_D is k_d times edge_scale[e].
+template <bool kScaled>
 [[gnu::always_inline]] inline void EdgePass(
     int num_edges, const int* __restrict edge_i, const int* __restrict edge_j,
     const double* __restrict rest_length, const double* __restrict inv_rest_length,
-    const double* __restrict x, const double* __restrict v, double k_d, double c_d,
-    double* __restrict out_force, double* __restrict out_force_neg, double* __restrict out_inv_sq,
+    const double* __restrict edge_scale, const double* __restrict x,
+    const double* __restrict v, double k_d_all, double c_d, double* __restrict out_force,
+    double* __restrict out_force_neg, double* __restrict out_inv_sq,
     double* __restrict out_energy) {
   for (int e = 0; e < num_edges; ++e) {
+    const double k_d = kScaled ? k_d_all * edge_scale[e] : k_d_all;
     const int i = edge_i[e], j = edge_j[e];
     const double dx = x[2 * j] - x[2 * i], dy = x[2 * j + 1] - x[2 * i + 1];
     const double dvx = v[2 * j] - v[2 * i], dvy = v[2 * j + 1] - v[2 * i + 1];
@@ -168,23 +172,41 @@ template <bool kSeriesOnly>
 
 // Pass (2): each triangle's forces and energy with the atan series on every
 // lane; needs_atan2 marks the triangles pass (3) redoes. Returns their count.
+// Triangle t's stiffnesses: k's, with kScaled its k_A and k_phi times
+// triangle_scale[t].
+template <bool kScaled>
+[[gnu::always_inline]] inline Stiffness TriangleStiffness(const Stiffness& k,
+                                                          const double* __restrict triangle_scale,
+                                                          int t) {
+  if constexpr (!kScaled) {
+    return k;
+  } else {
+    Stiffness scaled = k;
+    scaled.area = k.area * triangle_scale[t];
+    scaled.angle = k.angle * triangle_scale[t];
+    return scaled;
+  }
+}
+
+template <bool kScaled>
 [[gnu::always_inline]] inline int TrianglePass(
     int num_triangles, const int* __restrict tri_a, const int* __restrict tri_b,
     const int* __restrict tri_c, const int* __restrict edge_ab, const int* __restrict edge_bc,
     const int* __restrict edge_ca, const double* __restrict rest_area,
     const double* __restrict inv_rest_area, const double* __restrict cos_a,
     const double* __restrict sin_a, const double* __restrict cos_b,
-    const double* __restrict sin_b, const double* __restrict x,
-    const double* __restrict inv_sq, const Stiffness k, double* __restrict fa,
-    double* __restrict fb, double* __restrict fc, double* __restrict energy,
-    int* __restrict needs_atan2) {
+    const double* __restrict sin_b, const double* __restrict triangle_scale,
+    const double* __restrict x, const double* __restrict inv_sq, const Stiffness k,
+    double* __restrict fa, double* __restrict fb, double* __restrict fc,
+    double* __restrict energy, int* __restrict needs_atan2) {
   int num_needing_atan2 = 0;
   for (int t = 0; t < num_triangles; ++t) {
     const int a = tri_a[t], b = tri_b[t], c = tri_c[t];
     const TriangleResult r = TriangleForces<true>(
         x[2 * a], x[2 * a + 1], x[2 * b], x[2 * b + 1], x[2 * c], x[2 * c + 1],
         inv_sq[edge_ab[t]], inv_sq[edge_bc[t]], inv_sq[edge_ca[t]], rest_area[t],
-        inv_rest_area[t], cos_a[t], sin_a[t], cos_b[t], sin_b[t], k);
+        inv_rest_area[t], cos_a[t], sin_a[t], cos_b[t], sin_b[t],
+        TriangleStiffness<kScaled>(k, triangle_scale, t));
     fa[2 * t] = r.fax;
     fa[2 * t + 1] = r.fay;
     fb[2 * t] = r.fbx;
@@ -228,6 +250,7 @@ template <bool kSeriesOnly>
   return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
 }
 
+template <bool kScaled>
 [[gnu::always_inline]] inline double ComputeForcesImpl(const Arrays& m, const Stiffness& k,
                                                        const double* __restrict x,
                                                        const double* __restrict v,
@@ -240,15 +263,16 @@ template <bool kSeriesOnly>
   double* const triangle_force_c = triangle_force_b + 2 * m.num_triangles;
 
   // (1) Edges: distance springs and damping.
-  EdgePass(m.num_edges, m.edge_i, m.edge_j, m.rest_length, m.inv_rest_length, x, v, k.distance,
-           k.damping, edge_force, edge_force_neg, ws.edge_inv_length_sq.data(),
-           ws.edge_energy.data());
+  EdgePass<kScaled>(m.num_edges, m.edge_i, m.edge_j, m.rest_length, m.inv_rest_length,
+                    m.edge_scale, x, v, k.distance, k.damping, edge_force, edge_force_neg,
+                    ws.edge_inv_length_sq.data(), ws.edge_energy.data());
 
   // (2) Triangles, every atan by the series.
-  const int num_needing_atan2 = TrianglePass(
+  const int num_needing_atan2 = TrianglePass<kScaled>(
       m.num_triangles, m.triangle_a, m.triangle_b, m.triangle_c, m.triangle_edge_ab,
       m.triangle_edge_bc, m.triangle_edge_ca, m.rest_area, m.inv_rest_area, m.rest_cos_a,
-      m.rest_sin_a, m.rest_cos_b, m.rest_sin_b, x, ws.edge_inv_length_sq.data(), k,
+      m.rest_sin_a, m.rest_cos_b, m.rest_sin_b, m.triangle_scale, x,
+      ws.edge_inv_length_sq.data(), k,
       triangle_force_a, triangle_force_b, triangle_force_c, ws.triangle_energy.data(), ws.triangle_needs_atan2.data());
 
   // (3) The triangles with an angle outside the series' range, again with
@@ -262,7 +286,8 @@ template <bool kSeriesOnly>
           x[2 * a], x[2 * a + 1], x[2 * b], x[2 * b + 1], x[2 * c], x[2 * c + 1],
           inv_sq[m.triangle_edge_ab[t]], inv_sq[m.triangle_edge_bc[t]],
           inv_sq[m.triangle_edge_ca[t]], m.rest_area[t], m.inv_rest_area[t], m.rest_cos_a[t],
-          m.rest_sin_a[t], m.rest_cos_b[t], m.rest_sin_b[t], k);
+          m.rest_sin_a[t], m.rest_cos_b[t], m.rest_sin_b[t],
+          TriangleStiffness<kScaled>(k, m.triangle_scale, t));
       triangle_force_a[2 * t] = r.fax;
       triangle_force_a[2 * t + 1] = r.fay;
       triangle_force_b[2 * t] = r.fbx;
@@ -290,13 +315,15 @@ template <bool kSeriesOnly>
 
 double ComputeForcesBaseline(const Arrays& arrays, const Stiffness& k, const double* x,
                              const double* v, double* forces) {
-  return ComputeForcesImpl(arrays, k, x, v, forces);
+  return arrays.edge_scale != nullptr ? ComputeForcesImpl<true>(arrays, k, x, v, forces)
+                                      : ComputeForcesImpl<false>(arrays, k, x, v, forces);
 }
 
 #if CALIB_AVX2_KERNEL
 CALIB_TARGET_AVX2 double ComputeForcesAvx2(const Arrays& arrays, const Stiffness& k,
                                            const double* x, const double* v, double* forces) {
-  return ComputeForcesImpl(arrays, k, x, v, forces);
+  return arrays.edge_scale != nullptr ? ComputeForcesImpl<true>(arrays, k, x, v, forces)
+                                      : ComputeForcesImpl<false>(arrays, k, x, v, forces);
 }
 
 bool CpuHasAvx2() {
@@ -312,7 +339,8 @@ bool CpuHasAvx2() {
 CALIB_TARGET_AVX512 double ComputeForcesAvx512(const Arrays& arrays, const Stiffness& k,
                                                const double* x, const double* v,
                                                double* forces) {
-  return ComputeForcesImpl(arrays, k, x, v, forces);
+  return arrays.edge_scale != nullptr ? ComputeForcesImpl<true>(arrays, k, x, v, forces)
+                                      : ComputeForcesImpl<false>(arrays, k, x, v, forces);
 }
 
 bool CpuHasAvx512() {
@@ -328,7 +356,8 @@ bool CpuHasAvx512() {
 // baseline kernel covers it.
 double ComputeForcesAvx512(const Arrays& arrays, const Stiffness& k, const double* x,
                            const double* v, double* forces) {
-  return ComputeForcesImpl(arrays, k, x, v, forces);
+  return arrays.edge_scale != nullptr ? ComputeForcesImpl<true>(arrays, k, x, v, forces)
+                                      : ComputeForcesImpl<false>(arrays, k, x, v, forces);
 }
 
 bool CpuHasAvx512() { return false; }
@@ -339,7 +368,8 @@ bool CpuHasAvx512() { return false; }
 // baseline kernel is the only one.
 double ComputeForcesAvx2(const Arrays& arrays, const Stiffness& k, const double* x,
                          const double* v, double* forces) {
-  return ComputeForcesImpl(arrays, k, x, v, forces);
+  return arrays.edge_scale != nullptr ? ComputeForcesImpl<true>(arrays, k, x, v, forces)
+                                      : ComputeForcesImpl<false>(arrays, k, x, v, forces);
 }
 
 bool CpuHasAvx2() { return false; }

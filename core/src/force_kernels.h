@@ -44,6 +44,12 @@ struct Arrays {
   const double* rest_cos_b = nullptr;
   const double* rest_sin_b = nullptr;
 
+  /// Per-element stiffness factors, both null or both set: edge e's k_D
+  /// times edge_scale[e], triangle t's k_A and k_phi times
+  /// triangle_scale[t] (Model::ComputeScaledForces).
+  const double* edge_scale = nullptr;
+  const double* triangle_scale = nullptr;
+
   int num_nodes = 0;
   const int* node_contribution_start = nullptr;  ///< #N + 1
   const int* node_contribution = nullptr;        ///< pair indices of workspace->contribution

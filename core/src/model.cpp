@@ -1,5 +1,7 @@
 #include "calib/core/model.h"
 
+#include <cassert>
+
 #include "calib/core/enum_names.h"
 #include "force_kernels.h"
 
@@ -148,6 +150,33 @@ bool Model::IsAvailable(ForceKernel kernel) {
 double Model::ComputeForces(const ModelParameters& params, std::span<const Vec2> x,
                             std::span<const Vec2> v, std::span<Vec2> forces,
                             ForceWorkspace& ws, ForceKernel kernel) const {
+  force_kernels::Stiffness k;
+  k.distance = params.k_distance;
+  k.damping = params.k_damping;
+  k.area = params.k_area;
+  k.angle = params.k_angle;
+  return RunKernel(k, nullptr, nullptr, x, v, forces, ws, kernel);
+}
+
+double Model::ComputeScaledForces(const ModelParameters& params, std::span<const double> edge_scale,
+                                  std::span<const double> triangle_scale, std::span<const Vec2> x,
+                                  std::span<Vec2> forces, ForceWorkspace& ws,
+                                  ForceKernel kernel) const {
+  assert(edge_scale.size() == edge_i_.size() && triangle_scale.size() == triangle_a_.size());
+  force_kernels::Stiffness k;
+  k.distance = params.k_distance;
+  k.damping = 0.0;
+  k.area = params.k_area;
+  k.angle = params.k_angle;
+  // No damping: the velocities are never read into a result (0 times a
+  // finite value), so the positions stand in for them.
+  return RunKernel(k, edge_scale.data(), triangle_scale.data(), x, x, forces, ws, kernel);
+}
+
+double Model::RunKernel(const force_kernels::Stiffness& k, const double* edge_scale,
+                        const double* triangle_scale, std::span<const Vec2> x,
+                        std::span<const Vec2> v, std::span<Vec2> forces, ForceWorkspace& ws,
+                        ForceKernel kernel) const {
   force_kernels::Arrays arrays;
   arrays.num_edges = static_cast<int>(edge_i_.size());
   arrays.edge_i = edge_i_.data();
@@ -167,15 +196,12 @@ double Model::ComputeForces(const ModelParameters& params, std::span<const Vec2>
   arrays.rest_sin_a = rest_sin_a_.data();
   arrays.rest_cos_b = rest_cos_b_.data();
   arrays.rest_sin_b = rest_sin_b_.data();
+  arrays.edge_scale = edge_scale;
+  arrays.triangle_scale = triangle_scale;
   arrays.num_nodes = static_cast<int>(node_contribution_start_.size()) - 1;
   arrays.node_contribution_start = node_contribution_start_.data();
   arrays.node_contribution = node_contribution_.data();
   arrays.workspace = &ws;
-  force_kernels::Stiffness k;
-  k.distance = params.k_distance;
-  k.damping = params.k_damping;
-  k.area = params.k_area;
-  k.angle = params.k_angle;
 
   // Vec2 is two contiguous doubles, so the spans are interleaved (x, y) arrays.
   // Every node's force is written by the kernel's node pass.

@@ -27,9 +27,13 @@ using calib::testing::Jittered;
 
 // The model's sums as one scalar loop per element kind, the order of
 // operations of the vectorised kernels: edges (forces[j] += f,
-// forces[i] -= f) then triangles, in index order.
-std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& p,
-                               const std::vector<Vec2>& x, const std::vector<Vec2>& v) {
+// forces[i] -= f) then triangles, in index order. With scales, each
+// element's stiffnesses times its scale (Model::ComputeScaledForces).
+std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& base,
+                               const std::vector<Vec2>& x, const std::vector<Vec2>& v,
+                               const std::vector<double>* edge_scale = nullptr,
+                               const std::vector<double>* triangle_scale = nullptr) {
+  ModelParameters p = base;
   using energy_terms_detail::Atan2;
   using energy_terms_detail::Wrap;
   std::vector<Vec2> f(x.size(), Vec2::Zero());
@@ -45,6 +49,7 @@ std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& p,
     const double inv_length = 1.0 / length;
     const double inv_rest = 1.0 / mesh.rest_length_px[e];
     inv_sq[e] = inv_length * inv_length;
+    if (edge_scale != nullptr) p.k_distance = base.k_distance * (*edge_scale)[e];
     const double strain = (length - mesh.rest_length_px[e]) * inv_rest;
     const double along = -p.k_distance * strain * inv_rest * inv_length -
                          p.k_damping * inv_rest * inv_rest * (v[j] - v[i]).dot(d) * inv_sq[e];
@@ -56,6 +61,10 @@ std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& p,
   };
   for (int t = 0; t < mesh.NumTriangles(); ++t) {
     const auto [a, b, c] = mesh.triangles[t];
+    if (triangle_scale != nullptr) {
+      p.k_area = base.k_area * (*triangle_scale)[t];
+      p.k_angle = base.k_angle * (*triangle_scale)[t];
+    }
     const Vec2 ab = x[b] - x[a], bc = x[c] - x[b], ca = x[a] - x[c];
     const double inv_rest_area = 1.0 / mesh.rest_area_px2[t];
     const double rel = (-0.5 * Cross(ab, ca) - mesh.rest_area_px2[t]) * inv_rest_area;
@@ -131,6 +140,44 @@ TEST(Model, EveryKernelGivesTheBitsOfTheScalarSums) {
       EXPECT_EQ(std::bit_cast<uint64_t>(energy), std::bit_cast<uint64_t>(baseline_energy))
           << what << ": energy " << energy << " vs " << baseline_energy;
     }
+  }
+}
+
+// The scaled stiffnesses (a stiffness field): each element's terms with its
+// stiffnesses times its scale, negative scales included, no damping, from
+// every kernel with the bits of the scalar sums.
+TEST(Model, ScaledStiffnessesGiveTheBitsOfTheScaledScalarSums) {
+  const Mesh mesh = MakeGridMesh(13, 9, 10.0, Vec2(3, 4));
+  const Model model(mesh);
+  ModelParameters p = Stiff();
+  ForceWorkspace ws = model.MakeWorkspace();
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> scale(-0.9, 0.9);
+  std::vector<double> edge_scale(mesh.NumEdges()), triangle_scale(mesh.NumTriangles());
+  for (double& e : edge_scale) e = scale(rng);
+  for (double& t : triangle_scale) t = scale(rng);
+  for (const double amount : {0.01, 2.0, 6.0}) {
+    const auto x = Jittered(mesh.rest_positions, amount, 7);
+    ModelParameters undamped = p;
+    undamped.k_damping = 0.0;
+    const std::vector<Vec2> zero(x.size(), Vec2::Zero());
+    const std::vector<Vec2> expected =
+        ScalarForces(mesh, undamped, x, zero, &edge_scale, &triangle_scale);
+    std::vector<Vec2> f(x.size());
+    for (const ForceKernel kernel : kKernels) {
+      if (!Model::IsAvailable(kernel)) continue;
+      const std::string what = ToString(kernel) + " at jitter " + std::to_string(amount);
+      std::fill(f.begin(), f.end(), Vec2(1e300, -1e300));  // overwritten, not added to
+      model.ComputeScaledForces(p, edge_scale, triangle_scale, x, f, ws, kernel);
+      ExpectSameModelBits(expected, f, what);
+    }
+    // Unit scales: the model's own forces without damping.
+    std::vector<Vec2> plain(x.size());
+    const double plain_energy = model.ComputeForces(undamped, x, zero, plain, ws);
+    const std::vector<double> ones_e(mesh.NumEdges(), 1.0), ones_t(mesh.NumTriangles(), 1.0);
+    const double energy = model.ComputeScaledForces(p, ones_e, ones_t, x, f, ws);
+    ExpectSameModelBits(plain, f, "unit scales at jitter " + std::to_string(amount));
+    EXPECT_EQ(energy, plain_energy);
   }
 }
 

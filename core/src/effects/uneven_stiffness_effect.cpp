@@ -10,17 +10,21 @@
 // g = uneven_gradient in [0, 1): from 1 - g on the side opposite u (softer)
 // to 1 + g on the side u points to (stiffer).
 //
-// The base model's vectorised kernels stay as they are: the effect adds
-// (factor - 1) times each base term, computed by the reference kernels of
-// energy_terms.h, so the sum is the base term with the element's stiffness
-// (damping is not scaled). The added stiffness is elastic about the rest
+// The base model's arrays stay as they are: the effect adds (factor - 1)
+// times each base term, so the sum is the base term with the element's
+// stiffness (damping is not scaled). It computes them with the base model's
+// vectorised kernels on its own copy of the mesh's arrays, each element's
+// stiffnesses scaled by its factor - 1 (Model::ComputeScaledForces), and
+// adds each node's sum to the forces. The added stiffness is elastic about the rest
 // shape (rest_stiffness): the implicit step holds it in its matrix, so a
 // stiff side is as stable as the base model.
 
 #include <cmath>
 #include <numbers>
+#include <optional>
 
-#include "calib/core/effect_kernels.h"
+#include "calib/core/effects.h"
+#include "calib/core/model.h"
 #include "effect_factories.h"
 
 namespace calib::effects {
@@ -60,18 +64,16 @@ class UnevenStiffnessEffect final : public EffectTerm {
       edge_centre_[e] = 0.5 * (mesh.rest_positions[i] + mesh.rest_positions[j]);
     }
     triangle_centre_.resize(mesh.NumTriangles());
-    rest_cos_sin_.resize(mesh.NumTriangles());
     for (int t = 0; t < mesh.NumTriangles(); ++t) {
       const auto [a, b, c] = mesh.triangles[t];
       triangle_centre_[t] =
           (mesh.rest_positions[a] + mesh.rest_positions[b] + mesh.rest_positions[c]) / 3.0;
-      for (int k = 0; k < 3; ++k) {
-        rest_cos_sin_[t][2 * k] = std::cos(mesh.rest_angle_rad[t][k]);
-        rest_cos_sin_[t][2 * k + 1] = std::sin(mesh.rest_angle_rad[t][k]);
-      }
     }
     edge_extra_.resize(mesh.NumEdges());
     triangle_extra_.resize(mesh.NumTriangles());
+    field_.emplace(mesh);
+    workspace_ = field_->MakeWorkspace();
+    field_forces_.assign(mesh.NumNodes(), Vec2::Zero());
   }
 
   void Configure(const ParameterValues& values, const ModelParameters& base) override {
@@ -94,21 +96,9 @@ class UnevenStiffnessEffect final : public EffectTerm {
   void AddForces(std::span<const Vec2> x, std::span<const Vec2>, std::span<Vec2> forces,
                  double* energy) const override {
     if (gradient_ == 0.0) return;
-    const Mesh& mesh = *mesh_;
-    double sum = 0.0;
-    for (int e = 0; e < mesh.NumEdges(); ++e) {
-      const auto [i, j] = mesh.edges[e];
-      sum += DistanceEnergy(x[i], x[j], mesh.rest_length_px[e], edge_extra_[e] * base_.k_distance,
-                            forces[i], forces[j]);
-    }
-    for (int t = 0; t < mesh.NumTriangles(); ++t) {
-      const auto [a, b, c] = mesh.triangles[t];
-      const double extra = triangle_extra_[t];
-      sum += AreaEnergy(x[a], x[b], x[c], mesh.rest_area_px2[t], extra * base_.k_area, forces[a],
-                        forces[b], forces[c]);
-      sum += TriangleAngleEnergy(x[a], x[b], x[c], rest_cos_sin_[t], extra * base_.k_angle,
-                                 forces[a], forces[b], forces[c]);
-    }
+    const double sum = field_->ComputeScaledForces(base_, edge_extra_, triangle_extra_, x,
+                                                   field_forces_, workspace_);
+    for (size_t i = 0; i < forces.size(); ++i) forces[i] += field_forces_[i];
     if (energy != nullptr) *energy += sum;
   }
 
@@ -116,10 +106,14 @@ class UnevenStiffnessEffect final : public EffectTerm {
   const Mesh* mesh_ = nullptr;
   Vec2 centroid_ = Vec2::Zero();
   std::vector<Vec2> edge_centre_, triangle_centre_;
-  std::vector<std::array<double, 6>> rest_cos_sin_;
   double gradient_ = 0.0;
   ModelParameters base_;
   std::vector<double> edge_extra_, triangle_extra_;  ///< factor - 1 per element
+  // The mesh's arrays for the base kernels, their scratch and the field's
+  // forces per node (AddForces is called on one thread, effects.h).
+  std::optional<Model> field_;
+  mutable ForceWorkspace workspace_;
+  mutable std::vector<Vec2> field_forces_;
 };
 
 }  // namespace

@@ -15,6 +15,10 @@
 
 namespace calib {
 
+namespace force_kernels {
+struct Stiffness;
+}  // namespace force_kernels
+
 /// The instruction sets Model::ComputeForces has kernels for. Every kernel
 /// returns the same bits (same per-element operations in the same order, no
 /// FMA contraction, the same fixed order of the sums into the nodes); the
@@ -68,6 +72,16 @@ class Model {
   double ComputeForces(const ModelParameters& params, std::span<const Vec2> x,
                        std::span<const Vec2> v, std::span<Vec2> forces) const;
 
+  /// The elastic forces (no damping) with each element's stiffnesses
+  /// scaled: edge e's k_D times edge_scale[e] (#E), triangle t's k_A and
+  /// k_phi times triangle_scale[t] (#T), by the same kernels. Overwrites
+  /// `forces`; returns the energy. A stiffness field (the uneven_stiffness
+  /// effect) at the base kernels' speed. Allocates nothing.
+  double ComputeScaledForces(const ModelParameters& params, std::span<const double> edge_scale,
+                             std::span<const double> triangle_scale, std::span<const Vec2> x,
+                             std::span<Vec2> forces, ForceWorkspace& workspace,
+                             ForceKernel kernel = ForceKernel::kAuto) const;
+
   /// Elastic energy at positions `x`.
   double Energy(const ModelParameters& params, std::span<const Vec2> x) const;
 
@@ -84,6 +98,9 @@ class Model {
   static bool IsAvailable(ForceKernel kernel);
 
  private:
+  double RunKernel(const force_kernels::Stiffness& k, const double* edge_scale,
+                   const double* triangle_scale, std::span<const Vec2> x, std::span<const Vec2> v,
+                   std::span<Vec2> forces, ForceWorkspace& workspace, ForceKernel kernel) const;
   const Mesh* mesh_;
   // The mesh as flat arrays for the vectorised passes (force_kernels.h).
   std::vector<int> edge_i_, edge_j_;
