@@ -10,6 +10,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <limits>
 #include <cmath>
 #include <stdexcept>
@@ -166,10 +168,12 @@ void CheckPolygon(const std::vector<Vec2>& polygon, const MesherOptions& options
   }
 }
 
-// Sets each face's info to its depth: the number of constrained edges crossed
-// from the infinite face. Purely combinatorial, so unlike a centroid test it
-// cannot be fooled by slivers between nearly collinear boundary nodes.
-void MarkDepth(Cdt& cdt) {
+// Sets each face's info to its depth: the number of outline edges crossed
+// from the infinite face (the held regions' lines are constrained too, but do
+// not count). Purely combinatorial, so unlike a centroid test it cannot be
+// fooled by slivers between nearly collinear boundary nodes.
+template <class IsOutline>
+void MarkDepth(Cdt& cdt, const IsOutline& is_outline) {
   for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = -1;
   std::vector<Cdt::Face_handle> frontier = {cdt.infinite_face()};
   cdt.infinite_face()->info() = 0;
@@ -181,7 +185,7 @@ void MarkDepth(Cdt& cdt) {
       for (int k = 0; k < 3; ++k) {
         const Cdt::Face_handle n = f->neighbor(k);
         if (n->info() != -1) continue;
-        if (cdt.is_constrained(Cdt::Edge(f, k))) {
+        if (is_outline(Cdt::Edge(f, k))) {
           next_depth.push_back(n);
         } else {
           n->info() = depth;
@@ -199,6 +203,155 @@ void MarkDepth(Cdt& cdt) {
   }
 }
 
+// A side of a held region inside the outline, from a to b. An end is where
+// the side crosses the outline (on boundary edge `edge[e]` at parameter
+// `t[e]`), or a corner of the region inside the object (edge[e] = -1).
+struct HeldLine {
+  std::array<Vec2, 2> end;
+  std::array<long, 2> edge = {-1, -1};
+  std::array<double, 2> t = {0.0, 0.0};
+  int axis = 0;  // the coordinate that is constant along the line
+};
+
+// The stretches of the held regions' sides inside `boundary`, in order
+// (region, then its top, bottom, left and right side, then along the side).
+// A crossing is where the boundary edge's ends lie on either side of the
+// side's line, "on the line" counting as below it, so a boundary vertex on
+// the line is crossed once and a boundary edge along it not at all. The
+// point's constant coordinate is the side's own, exactly, so its node is
+// held by the region's closed rectangle.
+std::vector<HeldLine> FindHeldLines(const std::vector<RectPx>& regions,
+                                    const std::vector<Vec2>& boundary, double edge) {
+  const std::vector<Point> points = ToPoints(boundary);
+  const Kernel traits;
+  const size_t nb = boundary.size();
+  std::vector<HeldLine> lines;
+  for (const RectPx& r : regions) {
+    const double x0 = r.x, x1 = r.x + r.width, y0 = r.y, y1 = r.y + r.height;
+    // Each side as (constant axis, its value, the range along the other axis).
+    const std::array<std::array<double, 4>, 4> sides = {{
+        {1, y0, x0, x1}, {1, y1, x0, x1}, {0, x0, y0, y1}, {0, x1, y0, y1}}};
+    for (const auto& [axis_d, value, lo, hi] : sides) {
+      if (!(hi > lo)) continue;
+      const int axis = static_cast<int>(axis_d), along = 1 - axis;
+      auto at = [&](double u) {
+        Vec2 p;
+        p[axis] = value;
+        p[along] = u;
+        return p;
+      };
+      struct Break {
+        double u;
+        long edge;
+        double t;
+      };
+      std::vector<Break> breaks = {{lo, -1, 0.0}, {hi, -1, 0.0}};
+      for (size_t k = 0; k < nb; ++k) {
+        const Vec2& p = boundary[k];
+        const Vec2& q = boundary[(k + 1) % nb];
+        const double dp = p[axis] - value, dq = q[axis] - value;
+        if ((dp > 0.0) == (dq > 0.0)) continue;
+        const double t = dp / (dp - dq);
+        const double u = t == 0.0 ? p[along] : t == 1.0 ? q[along] : p[along] + t * (q[along] - p[along]);
+        if (u < lo || u > hi) continue;
+        breaks.push_back({u, static_cast<long>(k), t});
+      }
+      // Crossings before the corners they coincide with.
+      std::sort(breaks.begin(), breaks.end(), [](const Break& a, const Break& b) {
+        return a.u != b.u ? a.u < b.u : a.edge > b.edge;
+      });
+      for (size_t i = 0; i + 1 < breaks.size(); ++i) {
+        const Break& a = breaks[i];
+        const Break& b = breaks[i + 1];
+        if (!(b.u - a.u >= 0.5 * edge)) continue;  // a graze of a corner: no line
+        const Vec2 mid = at(0.5 * (a.u + b.u));
+        if (CGAL::bounded_side_2(points.begin(), points.end(), ToPoint(mid), traits) !=
+            CGAL::ON_BOUNDED_SIDE) {
+          continue;
+        }
+        HeldLine line;
+        line.end = {at(a.u), at(b.u)};
+        line.edge = {a.edge, b.edge};
+        line.t = {a.t, b.t};
+        line.axis = axis;
+        lines.push_back(line);
+      }
+    }
+  }
+  // Lines that would cross a line already kept (overlapping regions) are
+  // left out: the triangulation would add a node where they cross.
+  std::vector<HeldLine> kept;
+  for (const HeldLine& line : lines) {
+    bool crosses = false;
+    for (const HeldLine& other : kept) {
+      const int a = line.axis, b = 1 - a;
+      auto within = [](double v, double e0, double e1, bool open) {
+        const double lo = std::min(e0, e1), hi = std::max(e0, e1);
+        return open ? (v > lo && v < hi) : (v >= lo && v <= hi);
+      };
+      if (other.axis == a) {
+        // Parallel: they clash only on the same line, overlapping.
+        crosses = line.end[0][a] == other.end[0][a] &&
+                  std::max(std::min(line.end[0][b], line.end[1][b]),
+                           std::min(other.end[0][b], other.end[1][b])) <
+                      std::min(std::max(line.end[0][b], line.end[1][b]),
+                               std::max(other.end[0][b], other.end[1][b]));
+      } else {
+        // Perpendicular: where they meet must not be inside both.
+        const double along_line = other.end[0][b];   // other's constant coordinate
+        const double along_other = line.end[0][a];   // line's constant coordinate
+        crosses = within(along_line, line.end[0][b], line.end[1][b], true) &&
+                  within(along_other, other.end[0][a], other.end[1][a], true);
+      }
+      if (crosses) break;
+    }
+    if (!crosses) kept.push_back(line);
+  }
+  return kept;
+}
+
+// Puts the held lines' crossings into the boundary loop: a boundary node
+// within kHeldLineSnap edges of a crossing moves onto it, otherwise a node is
+// inserted there. Afterwards each crossing end of a line is a boundary node
+// at exactly its position.
+std::vector<Vec2> InsertCrossings(const std::vector<Vec2>& boundary,
+                                  const std::vector<HeldLine>& lines, double edge) {
+  const size_t nb = boundary.size();
+  std::vector<Vec2> moved = boundary;
+  std::vector<uint8_t> taken(nb, 0);
+  std::vector<std::vector<std::pair<double, Vec2>>> inserted(nb);
+  for (const HeldLine& line : lines) {
+    for (int e = 0; e < 2; ++e) {
+      if (line.edge[e] < 0) continue;
+      const size_t k = static_cast<size_t>(line.edge[e]);
+      const Vec2& point = line.end[e];
+      const size_t next = (k + 1) % nb;
+      if (moved[k] == point || moved[next] == point) continue;
+      bool already = false;
+      for (const auto& [t, p] : inserted[k]) already = already || p == point;
+      if (already) continue;
+      const double to_start = (point - boundary[k]).norm();
+      const double to_end = (point - boundary[next]).norm();
+      const size_t nearest = to_start <= to_end ? k : next;
+      if (std::min(to_start, to_end) <= kHeldLineSnap * edge && taken[nearest] == 0) {
+        moved[nearest] = point;
+        taken[nearest] = 1;
+      } else {
+        inserted[k].emplace_back(line.t[e], point);
+      }
+    }
+  }
+  std::vector<Vec2> out;
+  out.reserve(nb + lines.size() * 2);
+  for (size_t k = 0; k < nb; ++k) {
+    out.push_back(moved[k]);
+    std::sort(inserted[k].begin(), inserted[k].end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [t, p] : inserted[k]) out.push_back(p);
+  }
+  return out;
+}
+
 }  // namespace
 
 bool MesherOptions::IsValid(std::string* error) const {
@@ -209,6 +362,20 @@ bool MesherOptions::IsValid(std::string* error) const {
     }
     return false;
   }
+  for (size_t i = 0; i < held_regions.size(); ++i) {
+    const RectPx& r = held_regions[i];
+    const bool finite = std::isfinite(r.x) && std::isfinite(r.y) && std::isfinite(r.width) &&
+                        std::isfinite(r.height);
+    if (!finite || !(r.width >= 0.0) || !(r.height >= 0.0)) {
+      if (error != nullptr) {
+        *error = fmt::format(
+            "MesherOptions::held_regions[{}] = (x {}, y {}, width {}, height {}). Violated: "
+            "finite, width and height >= 0.",
+            i, r.x, r.y, r.width, r.height);
+      }
+      return false;
+    }
+  }
   return true;
 }
 
@@ -218,11 +385,13 @@ Mesh MeshPolygon(const std::vector<Vec2>& polygon, const MesherOptions& options)
   CheckPolygon(polygon, options);
   const double edge = options.edge_length_px;
 
-  // The mesh's boundary is the resampled outline; lattice nodes are placed
-  // inside it, clear of it.
-  std::vector<Vec2> nodes = ResampleBoundary(polygon, edge);
-  const int num_boundary = static_cast<int>(nodes.size());
-  const std::vector<Vec2> boundary(nodes.begin(), nodes.end());
+  // The mesh's boundary is the resampled outline, with a node wherever a held
+  // region's side crosses it; lattice nodes are placed inside it, clear of it
+  // and of those sides.
+  std::vector<Vec2> boundary = ResampleBoundary(polygon, edge);
+  const std::vector<HeldLine> held_lines = FindHeldLines(options.held_regions, boundary, edge);
+  if (!held_lines.empty()) boundary = InsertCrossings(boundary, held_lines, edge);
+  const int num_boundary = static_cast<int>(boundary.size());
   const std::vector<Point> points = ToPoints(boundary);
   const Kernel traits;
   if (!CGAL::is_simple_2(points.begin(), points.end(), traits)) {
@@ -235,6 +404,40 @@ Mesh MeshPolygon(const std::vector<Vec2>& polygon, const MesherOptions& options)
     return CGAL::bounded_side_2(points.begin(), points.end(), ToPoint(p), traits) ==
            CGAL::ON_BOUNDED_SIDE;
   };
+
+  // The held lines' nodes: their ends (a boundary node, or a region's corner
+  // inside the object, shared by its two sides) and each line split evenly,
+  // its constant coordinate kept exactly.
+  std::vector<Vec2> nodes = boundary;
+  auto node_at = [&](const Vec2& p) {
+    const auto found = std::find(nodes.begin(), nodes.end(), p);
+    if (found != nodes.end()) return static_cast<int>(found - nodes.begin());
+    nodes.push_back(p);
+    return static_cast<int>(nodes.size()) - 1;
+  };
+  std::vector<std::pair<int, int>> held_segments;
+  for (const HeldLine& line : held_lines) {
+    const int axis = line.axis, along = 1 - axis;
+    const Vec2& a = line.end[0];
+    const Vec2& b = line.end[1];
+    const long m = std::max(1L, std::lround(std::abs(b[along] - a[along]) / edge));
+    int previous = node_at(a);
+    for (long t = 1; t <= m; ++t) {
+      Vec2 p = b;
+      if (t < m) {
+        p[along] = (static_cast<double>(m - t) * a[along] + static_cast<double>(t) * b[along]) /
+                   static_cast<double>(m);
+      }
+      const int current = node_at(p);
+      held_segments.emplace_back(previous, current);
+      previous = current;
+    }
+  }
+  std::vector<std::pair<Vec2, Vec2>> keep_clear;
+  for (int b = 0; b < num_boundary; ++b) {
+    keep_clear.emplace_back(boundary[b], boundary[(b + 1) % num_boundary]);
+  }
+  for (const auto& [i, j] : held_segments) keep_clear.emplace_back(nodes[i], nodes[j]);
 
   // Equilateral lattice through the bounding box centre; odd rows are shifted
   // by half a spacing, which keeps the lattice symmetric about both centre
@@ -258,8 +461,8 @@ Mesh MeshPolygon(const std::vector<Vec2>& polygon, const MesherOptions& options)
                    centre.y() + static_cast<double>(j) * row_step);
       if (!inside(p)) continue;
       bool clear = true;
-      for (size_t k = 0; k < boundary.size() && clear; ++k) {
-        clear = SegmentDistance(p, boundary[k], boundary[(k + 1) % boundary.size()]) >= clearance;
+      for (size_t k = 0; k < keep_clear.size() && clear; ++k) {
+        clear = SegmentDistance(p, keep_clear[k].first, keep_clear[k].second) >= clearance;
       }
       if (clear) nodes.push_back(p);
     }
@@ -275,8 +478,23 @@ Mesh MeshPolygon(const std::vector<Vec2>& polygon, const MesherOptions& options)
   for (int b = 0; b < num_boundary; ++b) {
     cdt.insert_constraint(handles[b], handles[(b + 1) % num_boundary]);
   }
+  for (const auto& [i, j] : held_segments) cdt.insert_constraint(handles[i], handles[j]);
+  if (cdt.number_of_vertices() != nodes.size()) {
+    throw std::logic_error(fmt::format(
+        "MeshPolygon: the triangulation has {} vertices for {} nodes: a held region's side "
+        "crosses another constraint",
+        cdt.number_of_vertices(), nodes.size()));
+  }
 
-  MarkDepth(cdt);
+  auto is_outline = [&](const Cdt::Edge& e) {
+    if (!cdt.is_constrained(e)) return false;
+    const int i = e.first->vertex(Cdt::cw(e.second))->info();
+    const int j = e.first->vertex(Cdt::ccw(e.second))->info();
+    if (i >= num_boundary || j >= num_boundary) return false;
+    const int d = std::abs(i - j);
+    return d == 1 || d == num_boundary - 1;
+  };
+  MarkDepth(cdt, is_outline);
   std::vector<std::array<int, 3>> triangles;
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
     if (f->info() != 1) continue;

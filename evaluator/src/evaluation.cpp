@@ -141,9 +141,13 @@ PreparedRecording PrepareRecording(const Recording& recording, const Preparation
         recording.video_path.string()));
   }
   prepared.outline = ObjectOutline(prepared.object_masks[0], options.outline_tolerance_px);
-  prepared.mesh = MeshPolygon(prepared.outline, options.mesher);
-  prepared.mesh_quality = MeasureQuality(prepared.mesh);
   prepared.scene = BuildScene(recording);
+  // The clamps' edges are lines of the mesh: what a clamp holds ends on them.
+  MesherOptions mesher = options.mesher;
+  mesher.held_regions.insert(mesher.held_regions.end(), prepared.scene.clamps.begin(),
+                             prepared.scene.clamps.end());
+  prepared.mesh = MeshPolygon(prepared.outline, mesher);
+  prepared.mesh_quality = MeasureQuality(prepared.mesh);
   prepared.scene.motion = EstimateObservedMotion(recording, prepared.object_masks);
   if (prepared.scene.motion.known && options.track_motion) {
     TrackObservedMotion(prepared, options.motion_window_s);

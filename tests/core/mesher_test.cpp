@@ -223,6 +223,19 @@ TEST(MesherOptions, IsValidNamesFieldValueAndRule) {
   }
 }
 
+TEST(MesherOptions, IsValidNamesTheBadHeldRegion) {
+  for (const RectPx& bad : {RectPx{0, 0, -1, 9}, RectPx{0, 0, 75, -0.5},
+                            RectPx{std::nan(""), 0, 75, 9},
+                            RectPx{0, std::numeric_limits<double>::infinity(), 75, 9}}) {
+    MesherOptions options;
+    options.held_regions = {RectPx{0, 0, 10, 10}, bad};
+    std::string error;
+    EXPECT_FALSE(options.IsValid(&error));
+    EXPECT_NE(error.find("held_regions[1]"), std::string::npos) << error;
+    ExpectThrowsMentioning(Rectangle(400, 256), options, "held_regions[1]");
+  }
+}
+
 TEST(MeshPolygon, BadPolygonsThrowNamingTheProblem) {
   const MesherOptions options;
   ExpectThrowsMentioning({Vec2(0, 0), Vec2(100, 0)}, options, "at least 3");
@@ -266,6 +279,133 @@ TEST(MeshPolygon, DenseTracedOutlineGivesWellShapedTriangles) {
   for (int n : mesh.boundary_loops.at(0)) {
     EXPECT_LT(DistanceToPolygon(mesh.rest_positions[n], polygon), 1e-9) << "node " << n;
   }
+}
+
+}  // namespace
+}  // namespace calib
+
+namespace calib {
+namespace {
+
+// A strip hanging from the top edge, leaning so that no outline node falls on
+// the clamp's lower side by itself.
+std::vector<Vec2> LeaningStrip() {
+  return {Vec2(290, 0), Vec2(330, 0), Vec2(352, 150), Vec2(312, 150)};
+}
+
+// The area of the polygon inside the rectangle: the polygon clipped by the
+// rectangle's four half planes (Sutherland-Hodgman).
+double AreaInside(std::vector<Vec2> polygon, const RectPx& r) {
+  auto clip = [&](int axis, double value, bool keep_above) {
+    std::vector<Vec2> out;
+    for (size_t k = 0; k < polygon.size(); ++k) {
+      const Vec2& p = polygon[k];
+      const Vec2& q = polygon[(k + 1) % polygon.size()];
+      const bool p_in = keep_above ? p[axis] >= value : p[axis] <= value;
+      const bool q_in = keep_above ? q[axis] >= value : q[axis] <= value;
+      if (p_in) out.push_back(p);
+      if (p_in != q_in) out.push_back(p + (value - p[axis]) / (q[axis] - p[axis]) * (q - p));
+    }
+    polygon = out;
+  };
+  clip(0, r.x, true);
+  clip(0, r.x + r.width, false);
+  clip(1, r.y, true);
+  clip(1, r.y + r.height, false);
+  return polygon.size() < 3 ? 0.0 : PolygonArea(polygon);
+}
+
+// No triangle has corners strictly on both sides of the region's outline,
+// and the triangles inside it cover exactly the polygon's part inside it.
+void ExpectRegionIsAMeshLine(const Mesh& mesh, const std::vector<Vec2>& polygon,
+                             const RectPx& r) {
+  const RectPx shrunk{r.x + 1e-9, r.y + 1e-9, r.width - 2e-9, r.height - 2e-9};
+  double area_inside = 0.0;
+  for (int t = 0; t < mesh.NumTriangles(); ++t) {
+    int strictly_in = 0, strictly_out = 0;
+    Vec2 centroid = Vec2::Zero();
+    for (int n : mesh.triangles[t]) {
+      const Vec2& p = mesh.rest_positions[n];
+      centroid += p / 3.0;
+      if (shrunk.Contains(p)) ++strictly_in;
+      if (!r.Contains(p)) ++strictly_out;
+    }
+    EXPECT_FALSE(strictly_in > 0 && strictly_out > 0) << "triangle " << t << " crosses the region";
+    if (r.Contains(centroid)) {
+      const auto& tri = mesh.triangles[t];
+      area_inside += SignedArea(mesh.rest_positions[tri[0]], mesh.rest_positions[tri[1]],
+                                mesh.rest_positions[tri[2]]);
+    }
+  }
+  const double expected = AreaInside(polygon, r);
+  EXPECT_NEAR(area_inside, expected, 1e-9 * PolygonArea(polygon)) << "held area";
+}
+
+TEST(MeshPolygon, AClampsEdgeAcrossTheObjectIsARowOfNodes) {
+  const std::vector<Vec2> polygon = LeaningStrip();
+  const RectPx clamp{270, 0, 75, 9};
+  MesherOptions options;
+  options.held_regions = {clamp};
+  const Mesh mesh = MeshPolygon(polygon, options);
+  ExpectValidMeshOf(mesh, polygon, options.edge_length_px);
+  ExpectRegionIsAMeshLine(mesh, polygon, clamp);
+  // The clamp's lower side crosses the strip from x = 291.2 to 331.2: its
+  // ends and a node between them (40 px at 20 px edges) lie on it exactly.
+  std::vector<double> on_line;
+  for (const Vec2& p : mesh.rest_positions) {
+    if (p.y() == 9.0) on_line.push_back(p.x());
+  }
+  std::sort(on_line.begin(), on_line.end());
+  ASSERT_EQ(on_line.size(), 3u);
+  EXPECT_NEAR(on_line[0], 290.0 + 22.0 * 9.0 / 150.0, 1e-9);
+  EXPECT_NEAR(on_line[1], 0.5 * (on_line[0] + on_line[2]), 1e-9);
+  EXPECT_NEAR(on_line[2], 330.0 + 22.0 * 9.0 / 150.0, 1e-9);
+
+  // Without the clamp the outline's own nodes leave the line uncrossed by
+  // nodes: the held part would end wherever they fall.
+  const Mesh plain = MeshPolygon(polygon, MesherOptions());
+  for (const Vec2& p : plain.rest_positions) EXPECT_NE(p.y(), 9.0);
+}
+
+TEST(MeshPolygon, ARegionCornerInsideTheObjectIsANodeOfBothSides) {
+  const std::vector<Vec2> polygon = Rectangle(200, 200);
+  const RectPx region{-10, 50, 60, 40};  // its right corners (50, 50), (50, 90) inside
+  MesherOptions options;
+  options.held_regions = {region};
+  const Mesh mesh = MeshPolygon(polygon, options);
+  ExpectValidMeshOf(mesh, polygon, options.edge_length_px);
+  ExpectRegionIsAMeshLine(mesh, polygon, region);
+  for (const Vec2& corner : {Vec2(50, 50), Vec2(50, 90)}) {
+    const bool found = std::find(mesh.rest_positions.begin(), mesh.rest_positions.end(),
+                                 corner) != mesh.rest_positions.end();
+    EXPECT_TRUE(found) << "corner (" << corner.x() << ", " << corner.y() << ")";
+  }
+  EXPECT_GE(MeasureQuality(mesh).min_angle_deg, 20.0) << MeasureQuality(mesh).BriefReport();
+}
+
+TEST(MeshPolygon, ARegionClearOfTheObjectOrAlongItsEdgeChangesNothing) {
+  const std::vector<Vec2> polygon = LeaningStrip();
+  const Mesh plain = MeshPolygon(polygon, MesherOptions());
+  // Apart from it; and sharing the strip's top edge (the side along the
+  // outline crosses nothing, the other sides are outside).
+  for (const RectPx& r : {RectPx{0, 200, 50, 50}, RectPx{250, -20, 150, 20}}) {
+    MesherOptions options;
+    options.held_regions = {r};
+    const Mesh mesh = MeshPolygon(polygon, options);
+    EXPECT_EQ(mesh.rest_positions, plain.rest_positions);
+    EXPECT_EQ(mesh.triangles, plain.triangles);
+  }
+}
+
+TEST(MeshPolygon, OverlappingRegionsKeepTheFirstsLinesAndAValidMesh) {
+  const std::vector<Vec2> polygon = Rectangle(200, 200);
+  const RectPx first{-10, 40, 100, 60};
+  const RectPx second{60, -10, 60, 100};  // its left side crosses first's inside the square
+  MesherOptions options;
+  options.held_regions = {first, second};
+  const Mesh mesh = MeshPolygon(polygon, options);
+  ExpectValidMeshOf(mesh, polygon, options.edge_length_px);
+  ExpectRegionIsAMeshLine(mesh, polygon, first);
 }
 
 }  // namespace

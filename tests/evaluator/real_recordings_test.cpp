@@ -159,6 +159,38 @@ TEST_P(RealRecordingMesh, MeshesWithClampedNodes) {
   EXPECT_LT(clamped, mesh.NumNodes() / 2);
 }
 
+// With the clamp as a held region (as PrepareRecording meshes), what it
+// holds ends on a row of nodes on its lower edge, whatever the outline: no
+// triangle reaches across that edge, and the clamp holds those nodes.
+TEST_P(RealRecordingMesh, TheClampsEdgeIsARowOfHeldNodes) {
+  const Segmented& s = LoadAndSegment(GetParam());
+  ASSERT_FALSE(s.masks.empty());
+  const Scene scene = BuildScene(s.recording);
+  ASSERT_EQ(scene.clamps.size(), 1u);
+  const RectPx& clamp = scene.clamps[0];
+  const double edge_y = clamp.y + clamp.height;
+  MesherOptions options;
+  options.held_regions = scene.clamps;
+  const Mesh mesh = MeshPolygon(ObjectOutline(s.masks.front(), 1.0), options);
+  EXPECT_GE(MeasureQuality(mesh).min_angle_deg, 15.0) << MeasureQuality(mesh).BriefReport();
+  const Simulator simulator(mesh, scene, SimulationOptions{});
+  int on_edge = 0;
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    if (mesh.rest_positions[i].y() != edge_y) continue;
+    ++on_edge;
+    EXPECT_EQ(simulator.clamped()[i], 1) << "node " << i << " on the clamp's edge is free";
+  }
+  EXPECT_GE(on_edge, 2) << GetParam();
+  for (int t = 0; t < mesh.NumTriangles(); ++t) {
+    bool above = false, below = false;
+    for (int n : mesh.triangles[t]) {
+      above |= mesh.rest_positions[n].y() < edge_y;
+      below |= mesh.rest_positions[n].y() > edge_y;
+    }
+    EXPECT_FALSE(above && below) << "triangle " << t << " crosses the clamp's edge";
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Real, RealRecordingMesh, ::testing::ValuesIn(kRealRecordings),
                          [](const auto& info) { return info.param; });
 

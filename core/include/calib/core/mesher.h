@@ -13,6 +13,15 @@ struct MesherOptions {
   /// (about) of the nodes along the boundary. Pixels, finite, > 0.
   double edge_length_px = 20.0;
 
+  /// Rectangles (the recording's clamps) whose sides become lines of the
+  /// mesh where they cross the object: each side's stretch inside the polygon
+  /// is split into round(length / edge_length_px) (at least 1) pieces whose
+  /// nodes lie exactly on it, and no triangle crosses it. The part a clamp
+  /// holds then ends on a row of nodes on the clamp's edge, wherever the
+  /// outline's own nodes fall, so the free part has the same length on every
+  /// mesh of the object. Each must be finite with width and height >= 0.
+  std::vector<RectPx> held_regions;
+
   /// False, with a message naming the field, its value and the rule, when an
   /// option is out of range; `error` may be null.
   bool IsValid(std::string* error) const;
@@ -34,10 +43,17 @@ struct MesherOptions {
 /// is exactly the polygon and the mesh area equals the polygon area; a chain
 /// with shorter sides (an outline traced from pixels) is resampled at even arc
 /// length, so its boundary nodes lie on the polygon and the sides between them
-/// are chords of it. Nodes come in that order: boundary nodes along the
-/// polygon, then lattice nodes row by row (y, then x increasing). The
-/// triangles are a constrained Delaunay triangulation of those nodes. The
-/// result is a pure function of the input.
+/// are chords of it. Where a side of a held region crosses the outline, a
+/// boundary node is placed exactly at the crossing (the nearest boundary
+/// node moves there when it is within kHeldLineSnap edges of it). Nodes come
+/// in that order: boundary nodes along the polygon, then the held regions'
+/// nodes inside the polygon (side by side), then lattice nodes row by row
+/// (y, then x increasing); lattice nodes keep the same clearance from the
+/// held regions' sides as from the boundary. The triangles are a constrained
+/// Delaunay triangulation of those nodes, constrained by the boundary and
+/// the held regions' sides. A side that would cross one already placed (two
+/// held regions overlapping inside the object) is left out. The result is a
+/// pure function of the input.
 ///
 /// Throws std::invalid_argument when the options are invalid, the polygon has
 /// fewer than 3 vertices, a non-finite coordinate, is not simple (crossing
@@ -55,5 +71,10 @@ Mesh MeshPolygon(const std::vector<Vec2>& polygon, const MesherOptions& options)
 /// is 27.9 degrees and the worst radius ratio 1.8. Nothing refines further, so
 /// there is no proven bound.
 inline constexpr double kBoundaryClearance = 0.7;
+
+/// A boundary node this many edge lengths or closer to where a held region's
+/// side crosses the outline moves onto the crossing rather than leaving a
+/// sliver beside a new node.
+inline constexpr double kHeldLineSnap = 0.35;
 
 }  // namespace calib
