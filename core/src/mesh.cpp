@@ -205,4 +205,19 @@ std::string MeshQuality::BriefReport() const {
       min_edge_px, max_edge_px, worst_radius_ratio);
 }
 
+Vec2 AreaCentroid(const Mesh& mesh, std::span<const Vec2> positions) {
+  double area = 0.0;
+  Vec2 moment = Vec2::Zero();
+  for (const auto& tri : mesh.triangles) {
+    const Vec2& a = positions[tri[0]];
+    const Vec2& b = positions[tri[1]];
+    const Vec2& c = positions[tri[2]];
+    const double t = SignedArea(a, b, c);
+    area += t;
+    moment += t * (a + b + c) / 3.0;
+  }
+  if (area == 0.0) return Vec2(NAN, NAN);
+  return moment / area;
+}
+
 }  // namespace calib

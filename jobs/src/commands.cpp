@@ -1,6 +1,7 @@
 #include "calib/jobs/commands.h"
 
 #include "calib/core/parameters.h"
+#include "calib/evaluator/mask_geometry.h"
 #include "calib/evaluator/overlay.h"
 #include "calib/results/frame_report.h"
 
@@ -138,8 +139,13 @@ SimulateSummary RunSimulate(const std::filesystem::path& recording_dir,
   double worst_xor = -1.0;
   cv::Mat worst_image;
   std::vector<Disc> discs;
+  FrameCentroids centroids;
+  for (const BitMask& mask : prepared.object_masks) {
+    centroids.object_px.push_back(ComputeMoments(mask).centroid_px);
+  }
   const auto on_frame = [&](int frame, const Simulator& sim, const BitMask& mesh_mask,
                             const FrameScore& score) {
+    centroids.mesh_px.push_back(AreaCentroid(prepared.mesh, sim.positions()));
     const cv::Mat& image = reader.Next(frame);
     const bool wanted =
         std::find(options.png_frames.begin(), options.png_frames.end(), frame) !=
@@ -175,7 +181,7 @@ SimulateSummary RunSimulate(const std::filesystem::path& recording_dir,
     summary.overlay_pngs.push_back(png);
   }
   summary.frames_csv = out_dir / "frames.csv";
-  WriteFrameReportCsv(summary.frames_csv, summary.result, num_frames);
+  WriteFrameReportCsv(summary.frames_csv, summary.result, num_frames, &centroids);
   return summary;
 }
 

@@ -15,22 +15,38 @@ namespace calib {
 using csv_writer::WriteRecord;
 
 void WriteFrameReportCsv(const std::filesystem::path& path, const EvaluationResult& result,
-                         int num_frames) {
+                         int num_frames, const FrameCentroids* centroids) {
   csv_writer::File out = csv_writer::Open(path);
   if (!out) throw std::runtime_error(fmt::format("{}: cannot open for writing", path.string()));
-  WriteRecord(out.get(), {"frame", "xor", "missed", "extra", "iou", "status", "reason"});
+  std::vector<std::string> header = {"frame", "xor", "missed", "extra", "iou", "status", "reason"};
+  if (centroids != nullptr) {
+    header.insert(header.end(), {"mesh_cx", "mesh_cy", "object_cx", "object_cy"});
+  }
+  WriteRecord(out.get(), header);
+  // x and y of the frame's entry of `points`, or two empty cells.
+  auto add_point = [](std::vector<std::string>& row, const std::vector<Vec2>& points, int frame) {
+    const bool have =
+        frame >= 0 && frame < static_cast<int>(points.size()) && points[frame].allFinite();
+    row.push_back(have ? fmt::format("{}", points[frame].x()) : "");
+    row.push_back(have ? fmt::format("{}", points[frame].y()) : "");
+  };
   const int scored = static_cast<int>(result.frames.size());
   for (int frame = 0; frame < num_frames; ++frame) {
+    std::vector<std::string> row;
     if (frame < scored) {
       const FrameScore& s = result.frames[frame];
-      WriteRecord(out.get(), {std::to_string(frame), fmt::format("{}", s.xor_px),
-                              fmt::format("{}", s.missed_px), fmt::format("{}", s.extra_px),
-                              fmt::format("{:.6f}", s.iou), "ok", ""});
+      row = {std::to_string(frame), fmt::format("{}", s.xor_px), fmt::format("{}", s.missed_px),
+             fmt::format("{}", s.extra_px), fmt::format("{:.6f}", s.iou), "ok", ""};
     } else if (frame == result.failure_frame) {
-      WriteRecord(out.get(), {std::to_string(frame), "", "", "", "", "failed", result.failure_reason});
+      row = {std::to_string(frame), "", "", "", "", "failed", result.failure_reason};
     } else {
-      WriteRecord(out.get(), {std::to_string(frame), "", "", "", "", "not_simulated", ""});
+      row = {std::to_string(frame), "", "", "", "", "not_simulated", ""};
     }
+    if (centroids != nullptr) {
+      add_point(row, centroids->mesh_px, frame < scored ? frame : -1);
+      add_point(row, centroids->object_px, frame);
+    }
+    WriteRecord(out.get(), row);
   }
   if (!csv_writer::Close(std::move(out))) {
     throw std::runtime_error(fmt::format("{}: write failed", path.string()));

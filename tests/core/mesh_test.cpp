@@ -7,6 +7,7 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace calib {
 namespace {
@@ -31,6 +32,24 @@ TEST(BuildMesh, OrientsEveryTrianglePositively) {
       EXPECT_GT(m.rest_area_px2[i], 0.0) << "triangle " << i;
     }
   }
+}
+
+TEST(AreaCentroid, IsTheCentroidOfTheCoveredAreaAtAnyPositions) {
+  // An L of three unit squares: its centroid is (5/6, 5/6), not the mean of
+  // its nodes.
+  const Mesh mesh = BuildMesh({Vec2(0, 0), Vec2(1, 0), Vec2(2, 0), Vec2(0, 1), Vec2(1, 1),
+                               Vec2(2, 1), Vec2(0, 2), Vec2(1, 2)},
+                              {{0, 1, 4}, {0, 4, 3}, {1, 2, 5}, {1, 5, 4}, {3, 4, 7}, {3, 7, 6}});
+  const Vec2 c = AreaCentroid(mesh, mesh.rest_positions);
+  EXPECT_NEAR(c.x(), 5.0 / 6.0, 1e-15);
+  EXPECT_NEAR(c.y(), 5.0 / 6.0, 1e-15);
+  // Moved rigidly, it moves with the mesh.
+  std::vector<Vec2> moved = mesh.rest_positions;
+  for (Vec2& p : moved) p += Vec2(10, -3);
+  EXPECT_NEAR((AreaCentroid(mesh, moved) - (c + Vec2(10, -3))).norm(), 0.0, 1e-13);
+  // Collapsed to a point: no area, no centroid.
+  const std::vector<Vec2> collapsed(mesh.NumNodes(), Vec2(4, 4));
+  EXPECT_TRUE(std::isnan(AreaCentroid(mesh, collapsed).x()));
 }
 
 TEST(BuildMesh, EdgesAreUniqueSortedPairs) {

@@ -4,6 +4,7 @@
 
 #include "calib/jobs/commands.h"
 
+#include "support/csv_support.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -52,13 +53,16 @@ TEST(Commands, SimulateWritesReportsThatAgreeWithScore) {
   EXPECT_GT(summary.result.mean_iou, 0.9);
 
   // frames.csv: a header and one row per frame.
-  std::ifstream csv(summary.frames_csv);
-  std::string line;
-  int rows = 0;
-  std::getline(csv, line);
-  EXPECT_EQ(line, "frame,xor,missed,extra,iou,status,reason");
-  while (std::getline(csv, line)) ++rows;
-  EXPECT_EQ(rows, 330);
+  const testing::CsvRows rows = testing::ParseCsvFile(summary.frames_csv);
+  ASSERT_EQ(rows.size(), 331u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"frame", "xor", "missed", "extra", "iou", "status",
+                                               "reason", "mesh_cx", "mesh_cy", "object_cx",
+                                               "object_cy"}));
+  // Frame 0's mesh is the object's frame-0 outline: their centroids agree
+  // within a pixel.
+  ASSERT_EQ(rows[1].size(), 11u);
+  EXPECT_NEAR(std::stod(rows[1][7]), std::stod(rows[1][9]), 1.0);
+  EXPECT_NEAR(std::stod(rows[1][8]), std::stod(rows[1][10]), 1.0);
 
   cv::VideoCapture video(summary.overlay_video.string());
   ASSERT_TRUE(video.isOpened());

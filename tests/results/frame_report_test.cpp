@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -46,6 +47,32 @@ TEST(FrameReport, MarksFailedAndUnsimulatedFramesAndKeepsTheReasonIntact) {
   EXPECT_EQ(rows[3][6], result.failure_reason);
   EXPECT_EQ(rows[4][5], "not_simulated");
   EXPECT_EQ(rows[5][0], "4");
+}
+
+TEST(FrameReport, CentroidColumnsWhereEachFrameHasOne) {
+  EvaluationResult result;
+  result.status = EvaluationStatus::kFailed;
+  result.num_frames = 4;
+  result.failure_frame = 2;
+  result.failure_reason = "diverged";
+  result.frames = {FrameScore{}, FrameScore{}};
+  FrameCentroids centroids;
+  centroids.mesh_px = {Vec2(10.5, 20.25), Vec2(11.0, 21.0)};
+  centroids.object_px = {Vec2(10.0, 20.0), Vec2(NAN, NAN), Vec2(12.0, 22.5), Vec2(13.0, 23.0)};
+  const auto path = testing::ScratchDir("report") / "frames_centroids.csv";
+  WriteFrameReportCsv(path, result, 4, &centroids);
+  const Rows rows = testing::ParseCsvFile(path);
+  ASSERT_EQ(rows.size(), 5u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"frame", "xor", "missed", "extra", "iou", "status",
+                                               "reason", "mesh_cx", "mesh_cy", "object_cx",
+                                               "object_cy"}));
+  const auto tail = [&](int row) {
+    return std::vector<std::string>(rows[row].begin() + 7, rows[row].end());
+  };
+  EXPECT_EQ(tail(1), (std::vector<std::string>{"10.5", "20.25", "10", "20"}));
+  EXPECT_EQ(tail(2), (std::vector<std::string>{"11", "21", "", ""})) << "no object in frame 1";
+  EXPECT_EQ(tail(3), (std::vector<std::string>{"", "", "12", "22.5"})) << "failed: no mesh";
+  EXPECT_EQ(tail(4), (std::vector<std::string>{"", "", "13", "23"}));
 }
 
 TEST(FrameReport, RecordingDifferenceHasOneRowPerFrame) {

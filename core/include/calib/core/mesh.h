@@ -10,6 +10,7 @@
 
 #include "calib/core/types.h"
 
+#include <span>
 #include <string>
 
 namespace calib {
@@ -57,5 +58,10 @@ struct MeshQuality {
 };
 
 MeshQuality MeasureQuality(const Mesh& mesh);
+
+/// The area centroid of the mesh's triangles at `positions` (one per node),
+/// signed areas weighting each triangle's centroid; NaN when the total area
+/// is zero.
+Vec2 AreaCentroid(const Mesh& mesh, std::span<const Vec2> positions);
 
 }  // namespace calib
