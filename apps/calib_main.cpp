@@ -62,6 +62,10 @@ void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* inte
                   "model.contact_friction; 0: frictionless)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_flag("--area-weighted", settings->simulation.area_weighted,
+                "with inertia: masses and stiffnesses in proportion to each node's and "
+                "element's share of the area, so the parameters are the material's (job spec "
+                "model.area_weighted)");
   AddCacheOptions(cmd, cache_dir, no_cache);
   AddEffectsOption(cmd, settings);
 }

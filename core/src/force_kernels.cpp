@@ -128,17 +128,18 @@ template <bool kSeriesOnly>
 // force on node j (node i gets minus it), 1 / L^2 for the angle springs, and
 // the energy. The arrays are parameters so that __restrict holds (GCC keeps
 // it through inlining, not for block-scope pointers).
-// With kScaled, edge e's k_D is k_d times edge_scale[e].
+// With kScaled, edge e's k_D and k_d are times edge_scale[e].
 template <bool kScaled>
 [[gnu::always_inline]] inline void EdgePass(
     int num_edges, const int* __restrict edge_i, const int* __restrict edge_j,
     const double* __restrict rest_length, const double* __restrict inv_rest_length,
     const double* __restrict edge_scale, const double* __restrict x,
-    const double* __restrict v, double k_d_all, double c_d, double* __restrict out_force,
+    const double* __restrict v, double k_d_all, double c_d_all, double* __restrict out_force,
     double* __restrict out_force_neg, double* __restrict out_inv_sq,
     double* __restrict out_energy) {
   for (int e = 0; e < num_edges; ++e) {
     const double k_d = kScaled ? k_d_all * edge_scale[e] : k_d_all;
+    const double c_d = kScaled ? c_d_all * edge_scale[e] : c_d_all;
     const int i = edge_i[e], j = edge_j[e];
     const double dx = x[2 * j] - x[2 * i], dy = x[2 * j + 1] - x[2 * i + 1];
     const double dvx = v[2 * j] - v[2 * i], dvy = v[2 * j + 1] - v[2 * i + 1];
@@ -172,18 +173,19 @@ template <bool kScaled>
 
 // Pass (2): each triangle's forces and energy with the atan series on every
 // lane; needs_atan2 marks the triangles pass (3) redoes. Returns their count.
-// Triangle t's stiffnesses: k's, with kScaled its k_A and k_phi times
-// triangle_scale[t].
+// Triangle t's stiffnesses: k's, with kScaled its k_A times
+// triangle_scale[t] and its k_phi times angle_scale[t].
 template <bool kScaled>
 [[gnu::always_inline]] inline Stiffness TriangleStiffness(const Stiffness& k,
                                                           const double* __restrict triangle_scale,
+                                                          const double* __restrict angle_scale,
                                                           int t) {
   if constexpr (!kScaled) {
     return k;
   } else {
     Stiffness scaled = k;
     scaled.area = k.area * triangle_scale[t];
-    scaled.angle = k.angle * triangle_scale[t];
+    scaled.angle = k.angle * angle_scale[t];
     return scaled;
   }
 }
@@ -196,7 +198,8 @@ template <bool kScaled>
     const double* __restrict inv_rest_area, const double* __restrict cos_a,
     const double* __restrict sin_a, const double* __restrict cos_b,
     const double* __restrict sin_b, const double* __restrict triangle_scale,
-    const double* __restrict x, const double* __restrict inv_sq, const Stiffness k,
+    const double* __restrict angle_scale, const double* __restrict x,
+    const double* __restrict inv_sq, const Stiffness k,
     double* __restrict fa, double* __restrict fb, double* __restrict fc,
     double* __restrict energy, int* __restrict needs_atan2) {
   int num_needing_atan2 = 0;
@@ -206,7 +209,7 @@ template <bool kScaled>
         x[2 * a], x[2 * a + 1], x[2 * b], x[2 * b + 1], x[2 * c], x[2 * c + 1],
         inv_sq[edge_ab[t]], inv_sq[edge_bc[t]], inv_sq[edge_ca[t]], rest_area[t],
         inv_rest_area[t], cos_a[t], sin_a[t], cos_b[t], sin_b[t],
-        TriangleStiffness<kScaled>(k, triangle_scale, t));
+        TriangleStiffness<kScaled>(k, triangle_scale, angle_scale, t));
     fa[2 * t] = r.fax;
     fa[2 * t + 1] = r.fay;
     fb[2 * t] = r.fbx;
@@ -271,7 +274,7 @@ template <bool kScaled>
   const int num_needing_atan2 = TrianglePass<kScaled>(
       m.num_triangles, m.triangle_a, m.triangle_b, m.triangle_c, m.triangle_edge_ab,
       m.triangle_edge_bc, m.triangle_edge_ca, m.rest_area, m.inv_rest_area, m.rest_cos_a,
-      m.rest_sin_a, m.rest_cos_b, m.rest_sin_b, m.triangle_scale, x,
+      m.rest_sin_a, m.rest_cos_b, m.rest_sin_b, m.triangle_scale, m.angle_scale, x,
       ws.edge_inv_length_sq.data(), k,
       triangle_force_a, triangle_force_b, triangle_force_c, ws.triangle_energy.data(), ws.triangle_needs_atan2.data());
 
@@ -287,7 +290,7 @@ template <bool kScaled>
           inv_sq[m.triangle_edge_ab[t]], inv_sq[m.triangle_edge_bc[t]],
           inv_sq[m.triangle_edge_ca[t]], m.rest_area[t], m.inv_rest_area[t], m.rest_cos_a[t],
           m.rest_sin_a[t], m.rest_cos_b[t], m.rest_sin_b[t],
-          TriangleStiffness<kScaled>(k, m.triangle_scale, t));
+          TriangleStiffness<kScaled>(k, m.triangle_scale, m.angle_scale, t));
       triangle_force_a[2 * t] = r.fax;
       triangle_force_a[2 * t + 1] = r.fay;
       triangle_force_b[2 * t] = r.fbx;

@@ -44,11 +44,13 @@ struct Arrays {
   const double* rest_cos_b = nullptr;
   const double* rest_sin_b = nullptr;
 
-  /// Per-element stiffness factors, both null or both set: edge e's k_D
-  /// times edge_scale[e], triangle t's k_A and k_phi times
-  /// triangle_scale[t] (Model::ComputeScaledForces).
+  /// Per-element factors, all null or all set: edge e's k_D and k_d times
+  /// edge_scale[e], triangle t's k_A times triangle_scale[t] and its k_phi
+  /// times angle_scale[t] (Model::ComputeScaledForces, and a weighted
+  /// model's ComputeForces).
   const double* edge_scale = nullptr;
   const double* triangle_scale = nullptr;
+  const double* angle_scale = nullptr;
 
   int num_nodes = 0;
   const int* node_contribution_start = nullptr;  ///< #N + 1

@@ -13,12 +13,14 @@
 namespace calib {
 
 double SlowestModeRate(const Mesh& mesh, std::span<const uint8_t> clamped,
-                       std::span<const Vec2> rest) {
+                       std::span<const Vec2> rest, bool area_weighted) {
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   const int n = mesh.NumNodes();
   if (clamped.size() != static_cast<size_t>(n) || rest.size() != static_cast<size_t>(n)) return kNaN;
   Model model(mesh);
   if (model.SetRestShape(rest) >= 0) return kNaN;
+  const AreaWeights weights = area_weighted ? ComputeAreaWeights(mesh) : AreaWeights{};
+  if (area_weighted) model.SetElementWeights(weights.edge, weights.triangle, weights.angle);
   std::vector<int> free_nodes;
   for (int i = 0; i < n; ++i) {
     if (clamped[i] == 0) free_nodes.push_back(i);
@@ -51,6 +53,13 @@ double SlowestModeRate(const Mesh& mesh, std::span<const uint8_t> clamped,
       const int at = free_nodes[r / 2], along = r % 2;
       k1(r, c) = -(plus[at][along] - minus[at][along]) / (2.0 * probe);
     }
+  }
+  if (area_weighted) {
+    // The mass matrix W = diag(w): the rates of W^-1 K1 are those of the
+    // symmetric W^-1/2 K1 W^-1/2.
+    Eigen::VectorXd scale(dofs);
+    for (int r = 0; r < dofs; ++r) scale(r) = 1.0 / std::sqrt(weights.node[free_nodes[r / 2]]);
+    k1 = scale.asDiagonal() * k1 * scale.asDiagonal();
   }
   const Eigen::MatrixXd symmetric = 0.5 * (k1 + k1.transpose());
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(symmetric, Eigen::EigenvaluesOnly);

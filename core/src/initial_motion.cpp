@@ -1,5 +1,6 @@
 #include "calib/core/initial_motion.h"
 
+#include <Eigen/LU>
 #include <Eigen/SVD>
 #include <fmt/format.h>
 
@@ -14,6 +15,10 @@ namespace {
 // iteration cap a residual below kAcceptedResidual still counts as solved.
 constexpr double kTolerance = 1e-9;
 constexpr double kAcceptedResidual = 1e-5;
+
+// The dense fallback's limit: 1500 free coordinates (750 free nodes) cost
+// 3000 force evaluations and an LU of about 1e9 operations.
+constexpr int kMaxDenseDofs = 1500;
 
 double Dot(std::span<const Vec2> a, std::span<const Vec2> b) {
   double sum = 0.0;
@@ -117,7 +122,7 @@ bool InitialMotion::SolveLoad(const Model& model, const ModelParameters& params,
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     ApplyStiffness(model, params, at, direction_, workspace, k_direction_);
     const double curvature = Dot(direction_, k_direction_);
-    if (!(curvature > 0.0)) return false;
+    if (!(curvature > 0.0)) return SolveLoadDense(model, params, at, load, workspace, u);
     const double alpha = rr / curvature;
     for (size_t i = 0; i < n; ++i) {
       u[i] += alpha * direction_[i];
@@ -129,7 +134,37 @@ bool InitialMotion::SolveLoad(const Model& model, const ModelParameters& params,
     rr = rr_next;
     for (size_t i = 0; i < n; ++i) direction_[i] = residual_[i] + beta * direction_[i];
   }
-  return std::sqrt(rr) <= kAcceptedResidual * load_norm;
+  if (std::sqrt(rr) <= kAcceptedResidual * load_norm) return true;
+  return SolveLoadDense(model, params, at, load, workspace, u);
+}
+
+bool InitialMotion::SolveLoadDense(const Model& model, const ModelParameters& params,
+                                   std::span<const Vec2> at, std::span<const Vec2> load,
+                                   ForceWorkspace& workspace, std::vector<Vec2>& u) {
+  std::vector<int> free_nodes;
+  for (size_t i = 0; i < movable_.size(); ++i) {
+    if (movable_[i] != 0.0) free_nodes.push_back(static_cast<int>(i));
+  }
+  const int dofs = 2 * static_cast<int>(free_nodes.size());
+  if (dofs == 0 || dofs > kMaxDenseDofs) return false;
+  Eigen::MatrixXd k(dofs, dofs);
+  Eigen::VectorXd b(dofs);
+  for (Vec2& d : direction_) d.setZero();
+  for (int c = 0; c < dofs; ++c) {
+    const int node = free_nodes[c / 2], axis = c % 2;
+    direction_[node][axis] = 1.0;
+    ApplyStiffness(model, params, at, direction_, workspace, k_direction_);
+    direction_[node][axis] = 0.0;
+    for (int r = 0; r < dofs; ++r) k(r, c) = k_direction_[free_nodes[r / 2]][r % 2];
+    b(c) = load[node][axis];
+  }
+  const Eigen::FullPivLU<Eigen::MatrixXd> lu(k);
+  if (!lu.isInvertible()) return false;
+  const Eigen::VectorXd x = lu.solve(b);
+  if (!x.allFinite() || !((k * x - b).norm() <= kAcceptedResidual * b.norm())) return false;
+  for (Vec2& v : u) v.setZero();
+  for (int c = 0; c < dofs; ++c) u[free_nodes[c / 2]][c % 2] = x(c);
+  return true;
 }
 
 bool InitialMotion::Compute(const Model& model, const ModelParameters& params,
@@ -182,8 +217,8 @@ bool InitialMotion::Compute(const Model& model, const ModelParameters& params,
 }
 
 bool InitialMotion::SubtractStaticResponse(Model& model, const ModelParameters& params,
-                                           const Vec2& load, ForceWorkspace& workspace,
-                                           std::string* error) {
+                                           const Vec2& load, std::span<const double> mass_weight,
+                                           ForceWorkspace& workspace, std::string* error) {
   if (load.norm() == 0.0) return true;
   // Newton's method on the rest shape R for F(S; R) + load = 0 at the seen
   // shape S (rest_ on entry): the forces' derivative in R is the stiffness
@@ -196,7 +231,10 @@ bool InitialMotion::SubtractStaticResponse(Model& model, const ModelParameters& 
   std::copy(seen.begin(), seen.end(), candidate_rest_.begin());
   for (int step = 0; step < kNewtonSteps; ++step) {
     model.ComputeForces(params, seen, zero_velocity_, force_plus_, workspace);
-    for (size_t i = 0; i < seen.size(); ++i) load_field_[i] = movable_[i] * (force_plus_[i] + load);
+    for (size_t i = 0; i < seen.size(); ++i) {
+      const Vec2 node_load = mass_weight.empty() ? load : mass_weight[i] * load;
+      load_field_[i] = movable_[i] * (force_plus_[i] + node_load);
+    }
     if (!SolveLoad(model, params, seen, load_field_, workspace, response_x_)) {
       if (error != nullptr) {
         *error = fmt::format(

@@ -5,10 +5,13 @@
 #include "calib/core/enum_names.h"
 #include "force_kernels.h"
 
+#include <fmt/format.h>
+
 #include <array>
 #include <cmath>
 #include <map>
 #include <stdexcept>
+#include <utility>
 
 namespace calib {
 namespace {
@@ -155,7 +158,78 @@ double Model::ComputeForces(const ModelParameters& params, std::span<const Vec2>
   k.damping = params.k_damping;
   k.area = params.k_area;
   k.angle = params.k_angle;
-  return RunKernel(k, nullptr, nullptr, x, v, forces, ws, kernel);
+  if (!edge_weight_.empty()) {
+    return RunKernel(k, edge_weight_.data(), triangle_weight_.data(), angle_weight_.data(), x, v,
+                     forces, ws, kernel);
+  }
+  return RunKernel(k, nullptr, nullptr, nullptr, x, v, forces, ws, kernel);
+}
+
+void Model::SetElementWeights(std::span<const double> edge_weight,
+                              std::span<const double> triangle_weight,
+                              std::span<const double> angle_weight) {
+  if (edge_weight.empty() && triangle_weight.empty() && angle_weight.empty()) {
+    edge_weight_.clear();
+    triangle_weight_.clear();
+    angle_weight_.clear();
+    return;
+  }
+  auto check = [](std::span<const double> w, size_t expected, const char* what,
+                  const char* element) {
+    if (w.size() != expected) {
+      throw std::invalid_argument(fmt::format("Model::SetElementWeights: {} {} weights for {} {}s",
+                                              w.size(), what, expected, element));
+    }
+    for (size_t i = 0; i < w.size(); ++i) {
+      if (!std::isfinite(w[i]) || !(w[i] > 0.0)) {
+        throw std::invalid_argument(fmt::format(
+            "Model::SetElementWeights: {} {}'s {} weight is {}; must be finite and > 0", element,
+            i, what, w[i]));
+      }
+    }
+  };
+  check(edge_weight, edge_i_.size(), "edge", "edge");
+  check(triangle_weight, triangle_a_.size(), "triangle", "triangle");
+  check(angle_weight, triangle_a_.size(), "angle", "triangle");
+  edge_weight_.assign(edge_weight.begin(), edge_weight.end());
+  triangle_weight_.assign(triangle_weight.begin(), triangle_weight.end());
+  angle_weight_.assign(angle_weight.begin(), angle_weight.end());
+}
+
+AreaWeights ComputeAreaWeights(const Mesh& mesh) {
+  const double lattice_triangle =
+      std::sqrt(3.0) / 4.0 * kAreaWeightReferenceEdgePx * kAreaWeightReferenceEdgePx;
+  AreaWeights w;
+  w.node.assign(mesh.NumNodes(), 0.0);
+  w.edge.assign(mesh.NumEdges(), 0.0);
+  w.triangle.assign(mesh.NumTriangles(), 0.0);
+  w.angle.assign(mesh.NumTriangles(), 1.0);
+  // Edge indices by node pair, for the triangles' sides.
+  std::vector<std::vector<std::pair<int, int>>> edges_of(mesh.NumNodes());
+  for (int e = 0; e < mesh.NumEdges(); ++e) {
+    edges_of[mesh.edges[e][0]].emplace_back(mesh.edges[e][1], e);
+  }
+  auto edge_index = [&](int i, int j) {
+    if (i > j) std::swap(i, j);
+    for (const auto& [other, e] : edges_of[i]) {
+      if (other == j) return e;
+    }
+    throw std::logic_error(fmt::format("ComputeAreaWeights: no edge ({}, {})", i, j));
+  };
+  for (int t = 0; t < mesh.NumTriangles(); ++t) {
+    const auto& tri = mesh.triangles[t];
+    const double area = SignedArea(mesh.rest_positions[tri[0]], mesh.rest_positions[tri[1]],
+                                   mesh.rest_positions[tri[2]]);
+    w.triangle[t] = area / lattice_triangle;
+    // A third of the area to each corner and each side: over two lattice
+    // triangles (a node's share of the lattice) and over two thirds of one
+    // (an edge's).
+    for (int k = 0; k < 3; ++k) {
+      w.node[tri[k]] += area / (6.0 * lattice_triangle);
+      w.edge[edge_index(tri[k], tri[(k + 1) % 3])] += area / (2.0 * lattice_triangle);
+    }
+  }
+  return w;
 }
 
 double Model::ComputeScaledForces(const ModelParameters& params, std::span<const double> edge_scale,
@@ -170,11 +244,13 @@ double Model::ComputeScaledForces(const ModelParameters& params, std::span<const
   k.angle = params.k_angle;
   // No damping: the velocities are never read into a result (0 times a
   // finite value), so the positions stand in for them.
-  return RunKernel(k, edge_scale.data(), triangle_scale.data(), x, x, forces, ws, kernel);
+  return RunKernel(k, edge_scale.data(), triangle_scale.data(), triangle_scale.data(), x, x,
+                   forces, ws, kernel);
 }
 
 double Model::RunKernel(const force_kernels::Stiffness& k, const double* edge_scale,
-                        const double* triangle_scale, std::span<const Vec2> x,
+                        const double* triangle_scale, const double* angle_scale,
+                        std::span<const Vec2> x,
                         std::span<const Vec2> v, std::span<Vec2> forces, ForceWorkspace& ws,
                         ForceKernel kernel) const {
   force_kernels::Arrays arrays;
@@ -198,6 +274,7 @@ double Model::RunKernel(const force_kernels::Stiffness& k, const double* edge_sc
   arrays.rest_sin_b = rest_sin_b_.data();
   arrays.edge_scale = edge_scale;
   arrays.triangle_scale = triangle_scale;
+  arrays.angle_scale = angle_scale;
   arrays.num_nodes = static_cast<int>(node_contribution_start_.size()) - 1;
   arrays.node_contribution_start = node_contribution_start_.data();
   arrays.node_contribution = node_contribution_.data();

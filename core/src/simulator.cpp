@@ -118,6 +118,13 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
     if (hooks.dynamics) claim(dynamics_effect_, "the dynamics");
     effects_.push_back(std::move(effect));
   }
+  if (options.area_weighted && dynamics_effect_ != nullptr) {
+    AreaWeights weights = ComputeAreaWeights(mesh);
+    model_.SetElementWeights(weights.edge, weights.triangle, weights.angle);
+    mass_weight_ = std::move(weights.node);
+    inverse_mass_weight_.resize(mass_weight_.size());
+    for (size_t i = 0; i < mass_weight_.size(); ++i) inverse_mass_weight_[i] = 1.0 / mass_weight_[i];
+  }
   if (options.integrator == IntegratorKind::kImplicitFirstOrder) {
     implicit_step_ = std::make_unique<ImplicitFirstOrderStep>(model_, inverse_weight_,
                                                               !shape_stiffness_effects_.empty());
@@ -175,6 +182,8 @@ void Simulator::Reset(const ParameterValues& values) {
   }
   second_order_ = false;
   second_order_damping_per_s_ = 0.0;
+  body_force_.setZero();
+  for (const EffectTerm* effect : force_effects_) body_force_ += effect->UniformNodeForce();
   if (dynamics_effect_ != nullptr) {
     if (const std::optional<double> damping = dynamics_effect_->SecondOrderDamping()) {
       second_order_ = true;
@@ -196,9 +205,8 @@ void Simulator::StartFromObservedMotion() {
     // The tracked shape is where the object hangs, under gravity: the
     // springs rest where that shape is their equilibrium with it (or as
     // near as keeps every triangle; the model is left resting there).
-    Vec2 load = Vec2::Zero();
-    for (const EffectTerm* effect : force_effects_) load += effect->UniformNodeForce();
-    if (!initial_motion_.SubtractStaticResponse(model_, params_, load, force_workspace_, &error)) {
+    if (!initial_motion_.SubtractStaticResponse(model_, params_, body_force_, mass_weight_,
+                                                force_workspace_, &error)) {
       Fail(std::move(error));
       return;
     }
@@ -419,9 +427,20 @@ void Simulator::GatherStepContacts() {
 // velocities v_ of the last substep (after its constraints):
 //   x += h v / (1 + h c) + h^2 F / m,
 // semi-implicit Euler with the velocity decay c implicit, for movable nodes.
+//
+// Area weighted, node i's mass is m w_i and the body force on it w_i b (b
+// the effects' uniform force at weight 1, gravity's m g), so that
+//   x += h v / (1 + h c) + h^2 ((F - b) / w_i + b) / m.
 void Simulator::StepDampedSecondOrder(double h, double damping_per_s, double mass) {
   const double keep = h / (1.0 + h * damping_per_s);
   const double h2_over_m = h * h / mass;
+  if (!inverse_mass_weight_.empty()) {
+    for (size_t i = 0; i < x_.size(); ++i) {
+      if (inverse_weight_[i] == 0.0) continue;
+      x_[i] += keep * v_[i] + h2_over_m * ((f_[i] - body_force_) * inverse_mass_weight_[i] + body_force_);
+    }
+    return;
+  }
   for (size_t i = 0; i < x_.size(); ++i) {
     if (inverse_weight_[i] == 0.0) continue;
     x_[i] += keep * v_[i] + h2_over_m * f_[i];

@@ -139,7 +139,8 @@ class Loop {
   void AddConfusions(int round, const std::vector<Hypothesis>& ranked,
                      const std::vector<size_t>& stage_index);
 
-  const LoopOptions& o_;
+  // A copy: Prepare sets simulation.area_weighted for hanging objects.
+  LoopOptions o_;
   const LoopLog& log_;
   std::vector<LoopRecording> recs_;
   SearchScales scales_;
@@ -197,6 +198,19 @@ void Loop::Prepare() {
   std::vector<std::shared_ptr<const PreparedRecording>> training;
   for (const LoopRecording& r : recs_) {
     if (r.train) training.push_back(r.prepared);
+  }
+  // A clamped object moves by itself (it swings, sags): its fits with
+  // inertia are to carry to other recordings and other meshes of it, so
+  // their masses and stiffnesses are the material's (area weighted).
+  const bool hanging = std::any_of(training.begin(), training.end(), [](const auto& p) {
+    return !p->scene.clamps.empty();
+  });
+  if (hanging && !o_.simulation.area_weighted) {
+    o_.simulation.area_weighted = true;
+    report_.notes.push_back(
+        "the training recordings hold the object in clamps: the models with inertia are area "
+        "weighted (each node's mass and each element's stiffness in proportion to its share of "
+        "the object's area, docs/effects.md)");
   }
   scales_ = TrainingScales(training, o_.simulation);
   for (const LoopRecording& r : recs_) {

@@ -170,6 +170,7 @@ nlohmann::json ToJson(const JobSpec& spec) {
   // Written only when on: a job stored before the key existed (off) keeps
   // the same spec and resumes.
   if (m.simulation.outline_contact) out["model"]["outline_contact"] = true;
+  if (m.simulation.area_weighted) out["model"]["area_weighted"] = true;
   if (m.preparation.max_frames != 0) out["model"]["frames"] = m.preparation.max_frames;
   if (m.simulation.contact_friction != 0.0) {
     out["model"]["contact_friction"] = m.simulation.contact_friction;

@@ -144,6 +144,13 @@ void ReadModel(MapReader r, ModelSpec* m, const ModelCatalog& catalog) {
   if (!(sim.divergence_diameters > 0.0)) {
     r.Fail(r.KeyPath("divergence_diameters"), r.node()["divergence_diameters"], "must be > 0");
   }
+  r.Read("area_weighted", &sim.area_weighted);
+  if (sim.area_weighted &&
+      std::find(m->effects.begin(), m->effects.end(), "inertia") == m->effects.end()) {
+    r.Fail(r.KeyPath("area_weighted"), r.node()["area_weighted"],
+           "needs the inertia effect in model.effects (it weights masses, which only a "
+           "second-order model has)");
+  }
 
   PreparationOptions& prep = m->preparation;
   if (r.Has("segmentation")) {

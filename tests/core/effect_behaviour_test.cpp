@@ -9,10 +9,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <numbers>
 
+#include "calib/core/mesher.h"
+#include "calib/core/model.h"
 #include "calib/core/simulator.h"
 #include "support/test_support.h"
 
@@ -105,6 +108,62 @@ TEST(InertiaEffect, GravityMakesAClampedStripSag) {
   RunToEnd(sim, [&](int, const std::vector<Vec2>& x) {
     ASSERT_LT(MaxDisplacement(mesh, x), 1e-12) << "no gravity, no motion";
   });
+}
+
+// Area weighted, gravity still accelerates every node alike (its pull is in
+// proportion to each node's mass): a free body falls as the unweighted one,
+// whatever the masses of its nodes.
+TEST(InertiaEffect, AreaWeightedGravityAcceleratesEveryNodeAlike) {
+  // Triangles of unequal areas, so the nodes' masses differ.
+  MesherOptions mesher;
+  mesher.edge_length_px = 15.0;
+  const Mesh mesh =
+      MeshPolygon({Vec2(100, 100), Vec2(180, 100), Vec2(150, 160), Vec2(105, 140)}, mesher);
+  const Scene scene = StillScene(30);
+  const ParameterValues values = Values(
+      Base(), {{"inertia_damping_per_s", 0.5}, {"gravity_px_s2", 50.0}, {"gravity_angle_deg", 70.0}});
+  SimulationOptions weighted_options;
+  weighted_options.area_weighted = true;
+  Simulator plain(mesh, scene, {}, ModelDefinition{{"inertia"}});
+  Simulator weighted(mesh, scene, weighted_options, ModelDefinition{{"inertia"}});
+  plain.Reset(values);
+  weighted.Reset(values);
+  const AreaWeights w = ComputeAreaWeights(mesh);
+  ASSERT_GT(*std::max_element(w.node.begin(), w.node.end()),
+            1.5 * *std::min_element(w.node.begin(), w.node.end()));
+  // The internal forces of a body moving rigidly are rounding, which the
+  // masses divide differently: the same fall to 1e-9 px.
+  while (plain.Advance()) {
+    ASSERT_TRUE(weighted.Advance()) << weighted.failure_reason();
+    double apart = 0.0;
+    for (size_t i = 0; i < plain.positions().size(); ++i) {
+      apart = std::max(apart, (plain.positions()[i] - weighted.positions()[i]).norm());
+    }
+    EXPECT_LT(apart, 1e-9) << "frame " << plain.frame();
+  }
+  EXPECT_GT(Centroid(plain.positions()).y(), Centroid(mesh.rest_positions).y() + 1.0);
+}
+
+// Without a second-order effect the mass is a drag and area weighting
+// changes nothing.
+TEST(InertiaEffect, AreaWeightingWithoutInertiaChangesNothing) {
+  const Mesh mesh = ClampedPatch();
+  const Scene scene = DentScene(60, 6.0);
+  SimulationOptions weighted_options;
+  weighted_options.area_weighted = true;
+  for (const IntegratorKind integrator : {IntegratorKind::kFirstOrder, IntegratorKind::kImplicitFirstOrder}) {
+    SimulationOptions plain_options;
+    plain_options.integrator = weighted_options.integrator = integrator;
+    Simulator plain(mesh, scene, plain_options, ModelDefinition{{"table_friction"}});
+    Simulator weighted(mesh, scene, weighted_options, ModelDefinition{{"table_friction"}});
+    const ParameterValues values = Values(Base(), {{"friction_force", 0.2}});
+    plain.Reset(values);
+    weighted.Reset(values);
+    while (plain.Advance()) {
+      ASSERT_TRUE(weighted.Advance()) << weighted.failure_reason();
+      ASSERT_EQ(plain.positions(), weighted.positions()) << "frame " << plain.frame();
+    }
+  }
 }
 
 // One free node on two distance springs from two clamped ones (an

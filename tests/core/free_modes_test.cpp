@@ -4,11 +4,14 @@
 
 #include "calib/core/free_modes.h"
 
+#include "calib/core/mesher.h"
+
 #include "calib/core/simulator.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -27,12 +30,16 @@ Scene ClampedScene(int frames, double fps) {
   return scene;
 }
 
-TEST(FreeModes, AStripAtTheSwingStiffnessSwingsWithTheAskedPeriod) {
+// Plain, and with masses and stiffnesses weighted by area.
+class SwingPeriod : public ::testing::TestWithParam<bool> {};
+
+TEST_P(SwingPeriod, AStripAtTheSwingStiffnessSwingsWithTheAskedPeriod) {
+  const bool area_weighted = GetParam();
   const Mesh mesh = HangingStrip();
   const double fps = 240.0, period_s = 0.25, mass = 0.2;
   const Scene scene = ClampedScene(static_cast<int>(4 * period_s * fps) + 1, fps);
   const std::vector<uint8_t> clamped = ClampedNodes(mesh, scene);
-  const double rate = SlowestModeRate(mesh, clamped, mesh.rest_positions);
+  const double rate = SlowestModeRate(mesh, clamped, mesh.rest_positions, area_weighted);
   ASSERT_TRUE(std::isfinite(rate) && rate > 0.0) << rate;
   const double k = SwingStiffness(rate, period_s, mass);
   ASSERT_TRUE(std::isfinite(k) && k > 0.0) << k;
@@ -41,7 +48,9 @@ TEST(FreeModes, AStripAtTheSwingStiffnessSwingsWithTheAskedPeriod) {
   // Released at rest under a small sideways load (which adds no
   // stiffness), the strip swings about its loaded equilibrium; the uniform
   // load excites mostly the slowest mode.
-  Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
+  SimulationOptions options;
+  options.area_weighted = area_weighted;
+  Simulator sim(mesh, scene, options, ModelDefinition{{"inertia"}});
   sim.Reset(ParameterValues{{"k_D", k}, {"k_d", 0.0}, {"k_A", k}, {"k_phi", k}, {"mass", mass},
                             {"tau", 0.0}, {"inertia_damping_per_s", 0.0},
                             {"gravity_px_s2", 200.0}, {"gravity_angle_deg", 0.0}});
@@ -63,6 +72,43 @@ TEST(FreeModes, AStripAtTheSwingStiffnessSwingsWithTheAskedPeriod) {
   const double measured_s = (crossings.back() - crossings.front()) /
                             static_cast<double>(crossings.size() - 1) / fps;
   EXPECT_NEAR(measured_s, period_s, 0.03 * period_s);
+}
+
+INSTANTIATE_TEST_SUITE_P(FreeModes, SwingPeriod, ::testing::Bool(),
+                         [](const auto& info) { return info.param ? "AreaWeighted" : "Plain"; });
+
+// The point of area weighting: the same strip meshed at other spacings near
+// the reference edge (as each recording's frame-0 outline gives another
+// mesh) keeps its mass and stiffness per area, so it swings at nearly the
+// same rate; with a mass per node and a stiffness per element it does not.
+TEST(FreeModes, AreaWeightingKeepsTheSwingOfTheSameStripOnOtherMeshes) {
+  Scene scene = calib::testing::StillScene(2, 240.0);
+  scene.clamps.push_back({95.0, 95.0, 50.0, 10.0});  // the top 5 px of the strip
+  const std::vector<Vec2> strip = {Vec2(100, 100), Vec2(140, 100), Vec2(150, 260), Vec2(110, 260)};
+  auto mesh_at = [&](double edge) {
+    MesherOptions options;
+    options.edge_length_px = edge;
+    options.held_regions = scene.clamps;
+    return MeshPolygon(strip, options);
+  };
+  auto rate = [&](const Mesh& mesh, bool weighted) {
+    return SlowestModeRate(mesh, ClampedNodes(mesh, scene), mesh.rest_positions, weighted);
+  };
+  const Mesh reference = mesh_at(20.0);
+  double worst_weighted = 0.0, worst_plain = 0.0;
+  for (const double edge : {18.0, 22.0, 25.0}) {
+    const Mesh other = mesh_at(edge);
+    ASSERT_NE(other.NumNodes(), reference.NumNodes()) << edge;
+    const double weighted = std::abs(std::log(rate(other, true) / rate(reference, true)));
+    const double plain = std::abs(std::log(rate(other, false) / rate(reference, false)));
+    RecordProperty("edge_" + std::to_string(static_cast<int>(edge)),
+                   std::to_string(weighted) + " weighted, " + std::to_string(plain) + " plain");
+    worst_weighted = std::max(worst_weighted, weighted);
+    worst_plain = std::max(worst_plain, plain);
+  }
+  // Rates within 5 % (periods within 2.5 %), and closer than unweighted.
+  EXPECT_LT(worst_weighted, 0.05);
+  EXPECT_LT(worst_weighted, worst_plain);
 }
 
 TEST(FreeModes, AMeshTheClampsDoNotHoldHasNoSwing) {

@@ -4,6 +4,7 @@
 // atan series and its std::atan2 fallback) and with a collapsed edge.
 
 #include "calib/core/energy_terms.h"
+#include "calib/core/mesher.h"
 #include "calib/core/model.h"
 
 #include "support/test_support.h"
@@ -28,11 +29,14 @@ using calib::testing::Jittered;
 // The model's sums as one scalar loop per element kind, the order of
 // operations of the vectorised kernels: edges (forces[j] += f,
 // forces[i] -= f) then triangles, in index order. With scales, each
-// element's stiffnesses times its scale (Model::ComputeScaledForces).
+// element's constants times its scale (Model::ComputeScaledForces, a
+// weighted model's ComputeForces; the angle springs by angle_scale where
+// given, else by triangle_scale).
 std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& base,
                                const std::vector<Vec2>& x, const std::vector<Vec2>& v,
                                const std::vector<double>* edge_scale = nullptr,
-                               const std::vector<double>* triangle_scale = nullptr) {
+                               const std::vector<double>* triangle_scale = nullptr,
+                               const std::vector<double>* angle_scale = nullptr) {
   ModelParameters p = base;
   using energy_terms_detail::Atan2;
   using energy_terms_detail::Wrap;
@@ -49,7 +53,10 @@ std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& base,
     const double inv_length = 1.0 / length;
     const double inv_rest = 1.0 / mesh.rest_length_px[e];
     inv_sq[e] = inv_length * inv_length;
-    if (edge_scale != nullptr) p.k_distance = base.k_distance * (*edge_scale)[e];
+    if (edge_scale != nullptr) {
+      p.k_distance = base.k_distance * (*edge_scale)[e];
+      p.k_damping = base.k_damping * (*edge_scale)[e];
+    }
     const double strain = (length - mesh.rest_length_px[e]) * inv_rest;
     const double along = -p.k_distance * strain * inv_rest * inv_length -
                          p.k_damping * inv_rest * inv_rest * (v[j] - v[i]).dot(d) * inv_sq[e];
@@ -62,8 +69,9 @@ std::vector<Vec2> ScalarForces(const Mesh& mesh, const ModelParameters& base,
   for (int t = 0; t < mesh.NumTriangles(); ++t) {
     const auto [a, b, c] = mesh.triangles[t];
     if (triangle_scale != nullptr) {
+      const std::vector<double>& angle = angle_scale != nullptr ? *angle_scale : *triangle_scale;
       p.k_area = base.k_area * (*triangle_scale)[t];
-      p.k_angle = base.k_angle * (*triangle_scale)[t];
+      p.k_angle = base.k_angle * angle[t];
     }
     const Vec2 ab = x[b] - x[a], bc = x[c] - x[b], ca = x[a] - x[c];
     const double inv_rest_area = 1.0 / mesh.rest_area_px2[t];
@@ -178,6 +186,119 @@ TEST(Model, ScaledStiffnessesGiveTheBitsOfTheScaledScalarSums) {
     const double energy = model.ComputeScaledForces(p, ones_e, ones_t, x, f, ws);
     ExpectSameModelBits(plain, f, "unit scales at jitter " + std::to_string(amount));
     EXPECT_EQ(energy, plain_energy);
+  }
+}
+
+TEST(Model, WeightedElementsGiveTheBitsOfTheWeightedScalarSums) {
+  const Mesh mesh = MakeGridMesh(13, 9, 10.0, Vec2(3, 4));
+  Model model(mesh);
+  const ModelParameters p = Stiff();
+  ForceWorkspace ws = model.MakeWorkspace();
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> weight(0.2, 3.0);
+  std::vector<double> edge_weight(mesh.NumEdges()), triangle_weight(mesh.NumTriangles()),
+      angle_weight(mesh.NumTriangles());
+  for (double& e : edge_weight) e = weight(rng);
+  for (double& t : triangle_weight) t = weight(rng);
+  for (double& t : angle_weight) t = weight(rng);
+  const auto x = Jittered(mesh.rest_positions, 2.0, 7);
+  const auto v = Jittered(std::vector<Vec2>(x.size(), Vec2::Zero()), 3.0, 8);
+  std::vector<Vec2> plain(x.size()), f(x.size());
+  const double plain_energy = model.ComputeForces(p, x, v, plain, ws);
+
+  model.SetElementWeights(edge_weight, triangle_weight, angle_weight);
+  const std::vector<Vec2> expected =
+      ScalarForces(mesh, p, x, v, &edge_weight, &triangle_weight, &angle_weight);
+  for (const ForceKernel kernel : kKernels) {
+    if (!Model::IsAvailable(kernel)) continue;
+    std::fill(f.begin(), f.end(), Vec2(1e300, -1e300));
+    model.ComputeForces(p, x, v, f, ws, kernel);
+    ExpectSameModelBits(expected, f, "weighted, " + ToString(kernel));
+  }
+  // The weighted energy is what the weighted forces are the gradient of.
+  ModelParameters undamped = p;
+  undamped.k_damping = 0.0;
+  const std::vector<Vec2> zero(x.size(), Vec2::Zero());
+  model.ComputeForces(undamped, x, zero, f, ws);
+  const double h = 1e-6;
+  for (const int node : {0, 17, 60}) {
+    for (int axis = 0; axis < 2; ++axis) {
+      auto shifted = x;
+      shifted[node][axis] += h;
+      const double up = model.Energy(undamped, shifted);
+      shifted[node][axis] -= 2.0 * h;
+      const double down = model.Energy(undamped, shifted);
+      EXPECT_NEAR(-(up - down) / (2.0 * h), f[node][axis], 1e-5 * (1.0 + std::abs(f[node][axis])))
+          << "node " << node << " axis " << axis;
+    }
+  }
+
+  // Empty weights: the plain model again, bit for bit.
+  model.SetElementWeights({}, {}, {});
+  EXPECT_EQ(model.ComputeForces(p, x, v, f, ws), plain_energy);
+  ExpectSameModelBits(plain, f, "unweighted again");
+}
+
+TEST(Model, BadElementWeightsAreRefusedNamingTheElement) {
+  const Mesh mesh = MakeGridMesh(3, 2, 10.0);
+  Model model(mesh);
+  const std::vector<double> edges(mesh.NumEdges(), 1.0), triangles(mesh.NumTriangles(), 1.0);
+  auto expect_refused = [&](const std::vector<double>& e, const std::vector<double>& t,
+                            const std::string& needle) {
+    try {
+      model.SetElementWeights(e, t, triangles);
+      ADD_FAILURE() << "accepted; expected a message with '" << needle << "'";
+    } catch (const std::invalid_argument& error) {
+      EXPECT_NE(std::string(error.what()).find(needle), std::string::npos) << error.what();
+    }
+  };
+  expect_refused(std::vector<double>(edges.size() - 1, 1.0), triangles, "edge weights for");
+  expect_refused(edges, {}, "0 triangle weights for");
+  std::vector<double> bad = edges;
+  bad[4] = 0.0;
+  expect_refused(bad, triangles, "edge 4's edge weight is 0");
+  bad = triangles;
+  bad[2] = std::nan("");
+  expect_refused(edges, bad, "triangle 2's triangle weight is nan");
+  try {
+    model.SetElementWeights(edges, triangles, bad);
+    ADD_FAILURE() << "accepted a NaN angle weight";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("triangle 2's angle weight is nan"), std::string::npos)
+        << error.what();
+  }
+}
+
+TEST(Model, AreaWeightsShareTheAreaAndAreOneInsideTheLattice) {
+  const Mesh mesh = MeshPolygon({Vec2(0, 0), Vec2(300, 0), Vec2(300, 200), Vec2(0, 200)}, {});
+  const AreaWeights w = ComputeAreaWeights(mesh);
+  ASSERT_EQ(w.node.size(), static_cast<size_t>(mesh.NumNodes()));
+  ASSERT_EQ(w.edge.size(), static_cast<size_t>(mesh.NumEdges()));
+  ASSERT_EQ(w.triangle.size(), static_cast<size_t>(mesh.NumTriangles()));
+  EXPECT_EQ(w.angle, std::vector<double>(mesh.NumTriangles(), 1.0));
+  const double lattice_triangle = std::sqrt(3.0) / 4.0 * 400.0;
+  double nodes = 0.0, edges = 0.0, triangles = 0.0;
+  for (double x : w.node) nodes += x;
+  for (double x : w.edge) edges += x;
+  for (double x : w.triangle) triangles += x;
+  const double area = 300.0 * 200.0;
+  EXPECT_NEAR(triangles * lattice_triangle, area, 1e-9 * area);
+  EXPECT_NEAR(nodes * 2.0 * lattice_triangle, area, 1e-9 * area);
+  EXPECT_NEAR(edges * (2.0 / 3.0) * lattice_triangle, area, 1e-9 * area);
+  // A node whose six triangles are all lattice triangles weighs 1, and so
+  // do they and its edges.
+  int interior = 0;
+  for (int i = 0; i < mesh.NumNodes(); ++i) {
+    const Vec2& p = mesh.rest_positions[i];
+    if (p.x() < 60 || p.x() > 240 || p.y() < 60 || p.y() > 140) continue;
+    ++interior;
+    EXPECT_NEAR(w.node[i], 1.0, 1e-9) << "node " << i;
+  }
+  EXPECT_GT(interior, 10);
+  for (int e = 0; e < mesh.NumEdges(); ++e) {
+    const Vec2 mid = 0.5 * (mesh.rest_positions[mesh.edges[e][0]] + mesh.rest_positions[mesh.edges[e][1]]);
+    if (mid.x() < 60 || mid.x() > 240 || mid.y() < 60 || mid.y() > 140) continue;
+    EXPECT_NEAR(w.edge[e], 1.0, 1e-9) << "edge " << e;
   }
 }
 

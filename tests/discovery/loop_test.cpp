@@ -497,6 +497,60 @@ TEST(Loop, TheStagesWithInertiaSearchTheStiffnessesAboutTheSwingStiffness) {
   }
 }
 
+TEST(Loop, GravityPointsTheWayTheClampedObjectHangs) {
+  const auto setting_of = [](const std::vector<ParameterSetting>& settings, const std::string& name) {
+    const auto it = std::find_if(settings.begin(), settings.end(),
+                                 [&](const ParameterSetting& s) { return s.name == name; });
+    if (it == settings.end()) throw std::runtime_error(name + " not in the settings");
+    return *it;
+  };
+  SearchScales scales;
+  scales.swing_stiffness = 2.0e6;
+  scales.swing_period_s = 0.25;
+  scales.hanging_angle_deg = 80.0;
+  const ParameterSetting angle = setting_of(StageParameterSettings({"inertia"}, scales), "gravity_angle_deg");
+  ASSERT_TRUE(angle.fixed.has_value());
+  EXPECT_DOUBLE_EQ(*angle.fixed, 80.0);
+  // Not known (no clamps): searched all round.
+  const auto plain = StageParameterSettings({"inertia"}, SearchScales{});
+  EXPECT_FALSE(setting_of(plain, "gravity_angle_deg").fixed.has_value());
+  EXPECT_DOUBLE_EQ(setting_of(plain, "gravity_angle_deg").lower, -180.0);
+  EXPECT_DOUBLE_EQ(setting_of(plain, "gravity_angle_deg").upper, 180.0);
+}
+
+TEST(Loop, WithoutAForceSensorTheShareOfThePushIsNotSearched) {
+  const auto tau_of = [](const SearchScales& scales) {
+    for (const ParameterSetting& s : StageParameterSettings({}, scales)) {
+      if (s.name == "tau") return s;
+    }
+    throw std::runtime_error("no tau");
+  };
+  SearchScales scales;
+  const ParameterSetting still = tau_of(scales);
+  ASSERT_TRUE(still.fixed.has_value());
+  EXPECT_EQ(*still.fixed, 0.0);
+  scales.peak_force = 3.0;
+  const ParameterSetting pushed = tau_of(scales);
+  EXPECT_FALSE(pushed.fixed.has_value());
+  EXPECT_EQ(pushed.upper, 0.5);
+}
+
+TEST(Loop, AClampedObjectHangsFromItsClampsTowardsItsMeanCentroid) {
+  PreparedRecording prepared;
+  EXPECT_TRUE(std::isnan(HangingAngleDeg(prepared))) << "no clamps";
+  prepared.scene.clamps.push_back({40.0, 0.0, 20.0, 4.0});  // centre (50, 2)
+  // One pixel, centred at (69.5, 21.5) and then at (30.5, 21.5): it hangs
+  // straight down on average.
+  for (const int x : {69, 30}) {
+    BitMask mask(100, 60);
+    mask.SetSpan(21, x, x + 1);
+    prepared.object_masks.push_back(mask);
+  }
+  EXPECT_NEAR(HangingAngleDeg(prepared), 90.0, 1e-9);
+  prepared.object_masks.pop_back();  // only the right one: down and to the right
+  EXPECT_NEAR(HangingAngleDeg(prepared), 45.0, 1e-9);
+}
+
 TEST(Loop, TableFrictionIsSizedOnTheModelsDragNotOnTheSensor) {
   // A patch of 4 x 3 cells (20 nodes); the disc moves 3 px in frame 1
   // (90 px/s at 30 fps), then 1 px a frame.

@@ -133,6 +133,31 @@ TEST(JobSpec, CanonicalJsonRoundTrips) {
   EXPECT_EQ(ToJson(from_tabs), canonical) << "JSON indented with tabs";
 }
 
+TEST(JobSpec, AreaWeightingNeedsInertiaAndRoundTrips) {
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["area_weighted"] = true; }),
+                  "model.area_weighted = 'true': needs the inertia effect");
+  const fs::path dir = MakeJobFolder("job_spec_area_weighted");
+  YAML::Node root = YAML::Load(kValidSpec);
+  root["model"]["effects"].push_back("inertia");
+  root["model"]["area_weighted"] = true;
+  for (const char* name : {"inertia_damping_per_s", "gravity_px_s2", "gravity_angle_deg"}) {
+    YAML::Node p;
+    p["name"] = name;
+    p["fixed"] = 1.0;
+    root["parameters"].push_back(p);
+  }
+  YAML::Emitter out;
+  out << root;
+  const JobSpec spec = ParseJobSpec(std::string(out.c_str()), "job.yaml", dir);
+  EXPECT_TRUE(spec.model.simulation.area_weighted);
+  const nlohmann::json canonical = ToJson(spec);
+  EXPECT_EQ(canonical["model"]["area_weighted"], true);
+  EXPECT_TRUE(ParseJobSpec(canonical, "stored spec", dir).model.simulation.area_weighted);
+  // Off is the default and left out, as for a job stored before the key.
+  EXPECT_FALSE(ToJson(ParseJobSpec(std::string(kValidSpec), "job.yaml", dir))["model"].contains(
+      "area_weighted"));
+}
+
 TEST(JobSpec, DefaultsAreFilledIn) {
   const fs::path dir = MakeJobFolder("job_spec_defaults");
   const JobSpec spec = ParseJobSpec(std::string(R"yaml(

@@ -16,6 +16,7 @@
 // hanging object, gravity lies in the image plane; for a top view of a table
 // the strength is 0 (or a tilt of the table). Its energy is -m g . x.
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -48,7 +49,15 @@ class InertiaEffect final : public EffectTerm {
             {"gravity_angle_deg", "deg",
              "inertia: direction of gravity in the image (0: +x right, 90: +y down)", -180.0, 180.0,
              false,
-             [](const SearchScales&) { return SearchBox::Linear(-180.0, 180.0); },
+             [](const SearchScales& s) {
+               // A clamped object hangs the way gravity pulls: the
+               // direction is the video's, not a fit's (one recording
+               // cannot tell a tilted gravity from a stiffer spring).
+               if (std::isfinite(s.hanging_angle_deg)) {
+                 return SearchBox::Fixed(std::clamp(s.hanging_angle_deg, -180.0, 180.0));
+               }
+               return SearchBox::Linear(-180.0, 180.0);
+             },
              [](const SearchBox&) { return 90.0; }},  // down the image (irrelevant at g = 0)
         },
         true};

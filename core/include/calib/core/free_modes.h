@@ -29,9 +29,12 @@ namespace calib {
 /// lambda_min of K1 for `mesh` resting at `rest` (#N; e.g. the mesh's own
 /// rest positions), nodes with clamped[i] != 0 held. NaN when no node is
 /// free, the clamps do not hold the mesh (lambda_min ~ 0: it can move
-/// rigidly) or `rest` turns a triangle over.
+/// rigidly) or `rest` turns a triangle over. `area_weighted`: the model of
+/// SimulationOptions::area_weighted, its elements weighted and node i of
+/// mass m w_i (ComputeAreaWeights), so lambda_min is that of
+/// W^-1/2 K1 W^-1/2.
 double SlowestModeRate(const Mesh& mesh, std::span<const uint8_t> clamped,
-                       std::span<const Vec2> rest);
+                       std::span<const Vec2> rest, bool area_weighted = false);
 
 /// The common stiffness k at which nodes of `mass` swing with `period_s`:
 /// mass (2 pi / period_s)^2 / rate, for rate = SlowestModeRate(...). NaN

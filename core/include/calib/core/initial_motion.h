@@ -65,8 +65,9 @@ class InitialMotion {
 
   /// After Compute from the tracked shape (Scene::ObservedMotion's node
   /// fields), with `model` resting at rest_shape(): moves the rest shape so
-  /// that the tracked shape is the equilibrium under the constant force
-  /// `load` on every movable node (gravity's m g), rest -= K^-1 load, K the
+  /// that the tracked shape is the equilibrium under the force
+  /// `mass_weight[i] load` on every movable node i (gravity's m g; weight 1
+  /// for every node when `mass_weight` is empty), rest -= K^-1 load, K the
   /// stiffness at the tracked shape, refined by up to three Newton steps on
   /// F(S; rest) + load = 0. Where that turns a triangle over, the largest
   /// share of it by halves (none: the tracked shape). Leaves `model`
@@ -74,7 +75,8 @@ class InitialMotion {
   /// with *error set when K cannot be solved (a stiffness too low to hold
   /// the mesh).
   bool SubtractStaticResponse(Model& model, const ModelParameters& params, const Vec2& load,
-                              ForceWorkspace& workspace, std::string* error);
+                              std::span<const double> mass_weight, ForceWorkspace& workspace,
+                              std::string* error);
 
   /// Whether the last Compute took the tracked shape (node fields) rather
   /// than the estimate from the centroid.
@@ -94,8 +96,17 @@ class InitialMotion {
   // gradients, K applied as central differences of the model's forces.
   // K is taken at the positions `at` (#N). SolveLoad solves K u = load
   // (#N, zero on clamped nodes), SolveResponse for the uniform `load`.
+  // Where the gradients stall (K not positive definite at a seen shape
+  // under tension, or one spring kind far stiffer than the others),
+  // SolveLoadDense takes over.
   bool SolveLoad(const Model& model, const ModelParameters& params, std::span<const Vec2> at,
                  std::span<const Vec2> load, ForceWorkspace& workspace, std::vector<Vec2>& u);
+  // K assembled column by column from the same differences (free nodes
+  // only) and solved by LU with full pivoting; false when K is singular,
+  // the mesh has more than kMaxDenseDofs free coordinates or the solution
+  // misses the load by more than the accepted residual. Allocates.
+  bool SolveLoadDense(const Model& model, const ModelParameters& params, std::span<const Vec2> at,
+                      std::span<const Vec2> load, ForceWorkspace& workspace, std::vector<Vec2>& u);
   bool SolveResponse(const Model& model, const ModelParameters& params, std::span<const Vec2> at,
                      const Vec2& direction, ForceWorkspace& workspace, std::vector<Vec2>& u);
   void ApplyStiffness(const Model& model, const ModelParameters& params, std::span<const Vec2> at,

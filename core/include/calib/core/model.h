@@ -82,6 +82,16 @@ class Model {
                              std::span<Vec2> forces, ForceWorkspace& workspace,
                              ForceKernel kernel = ForceKernel::kAuto) const;
 
+  /// Weights each element's constants from now on: ComputeForces (and
+  /// Energy) take edge e's k_D and k_d times edge_weight[e] (#E), triangle
+  /// t's k_A times triangle_weight[t] and its k_phi times angle_weight[t]
+  /// (#T each), by the same kernels. All empty: unweighted again. Throws
+  /// std::invalid_argument when a size is wrong or a weight is not finite
+  /// and > 0. ComputeScaledForces is not weighted.
+  void SetElementWeights(std::span<const double> edge_weight,
+                         std::span<const double> triangle_weight,
+                         std::span<const double> angle_weight);
+
   /// Elastic energy at positions `x`.
   double Energy(const ModelParameters& params, std::span<const Vec2> x) const;
 
@@ -99,7 +109,8 @@ class Model {
 
  private:
   double RunKernel(const force_kernels::Stiffness& k, const double* edge_scale,
-                   const double* triangle_scale, std::span<const Vec2> x, std::span<const Vec2> v,
+                   const double* triangle_scale, const double* angle_scale,
+                   std::span<const Vec2> x, std::span<const Vec2> v,
                    std::span<Vec2> forces, ForceWorkspace& workspace, ForceKernel kernel) const;
   const Mesh* mesh_;
   // The mesh as flat arrays for the vectorised passes (force_kernels.h).
@@ -113,6 +124,34 @@ class Model {
   // node_contribution_[node_contribution_start_[n] .. [n + 1]), in the order
   // of the plain scatter: edges in index order, then triangles in index order.
   std::vector<int> node_contribution_start_, node_contribution_;
+  std::vector<double> edge_weight_, triangle_weight_, angle_weight_;  ///< empty: unweighted
 };
+
+/// The edge length of the lattice that area weights are relative to.
+inline constexpr double kAreaWeightReferenceEdgePx = 20.0;
+
+/// Weights that make the model's constants a material's rather than the
+/// mesh's (SimulationOptions::area_weighted): each element's and node's
+/// share of the rest area, over that share on the equilateral lattice of
+/// kAreaWeightReferenceEdgePx edges. A triangle's weight (its area spring's)
+/// is its area over the lattice triangle's; an edge's is a third of each
+/// adjacent triangle's area over two thirds of the lattice triangle's (an
+/// interior lattice edge has 1, a boundary one 1/2); a node's is a third of
+/// each adjacent triangle's area over two lattice triangles' (an interior
+/// lattice node has 1). The angle springs keep weight 1: a corner's angle
+/// changes with the curvature times the element's size, so its energy per
+/// area is already the same on a finer mesh of the same bend, which
+/// weighting by area would undo. A mesh of that lattice's interior is thus
+/// weighted 1 throughout, and the same material meshed more finely or
+/// coarsely has about the same mass and stiffness per area.
+struct AreaWeights {
+  std::vector<double> node;      ///< #N
+  std::vector<double> edge;      ///< #E
+  std::vector<double> triangle;  ///< #T, the area springs
+  std::vector<double> angle;     ///< #T, the angle springs (1)
+};
+
+/// The weights of `mesh` at its rest positions.
+AreaWeights ComputeAreaWeights(const Mesh& mesh);
 
 }  // namespace calib

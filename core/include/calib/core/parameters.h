@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <map>
 #include <optional>
 #include <stdexcept>
@@ -59,6 +60,11 @@ struct SearchScales {
   double swing_stiffness = 0.0;
   /// The swing's period it was set from, s (0 with it).
   double swing_period_s = 0.0;
+  /// For a clamped object, the direction from the clamps' centre to the
+  /// object's mean centroid over the video, degrees in the image (0: +x,
+  /// 90: +y, down): the object hangs that way, so gravity points within 90
+  /// degrees of it. NaN: not known.
+  double hanging_angle_deg = std::numeric_limits<double>::quiet_NaN();
   /// The previous fit's values, when a calibration continues one (an
   /// effect's box may scale with a base value, e.g. k_D); empty otherwise.
   std::map<std::string, double> reference;

@@ -47,6 +47,14 @@ struct SimulationOptions {
   /// A node farther than this many mesh diameters from the rest centroid
   /// means the state diverged.
   double divergence_diameters = 10.0;
+  /// With a second-order effect (inertia): the parameters are a material's,
+  /// not the mesh's. Each node's mass is `mass` times its share of the rest
+  /// area, each element's constants the parameters times its share
+  /// (ComputeAreaWeights, relative to the lattice of
+  /// kAreaWeightReferenceEdgePx edges), and gravity pulls each node in
+  /// proportion to its mass: the same object meshed differently swings the
+  /// same. Without such an effect (mass is a drag) it changes nothing.
+  bool area_weighted = false;
 
   /// False with a message naming the field, its value and the rule.
   bool IsValid(std::string* error) const;
@@ -167,6 +175,10 @@ class Simulator {
 
   std::vector<uint8_t> clamped_;
   std::vector<double> inverse_weight_;  // 0 for clamped nodes, 1 otherwise
+  // Area weighting (SimulationOptions::area_weighted) with a second-order
+  // effect: each node's mass over `mass`, and its inverse; empty otherwise.
+  std::vector<double> mass_weight_, inverse_mass_weight_;
+  Vec2 body_force_ = Vec2::Zero();  // the effects' UniformNodeForce at unit mass weight
   Vec2 rest_centroid_ = Vec2::Zero();
   double divergence_radius_sq_ = 0.0;
 

@@ -50,13 +50,21 @@ struct SwingScale {
 
 /// The swing scale of `prepared`: found when its scene's motion has the
 /// tracked rest shape (TrackObservedMotion), the centroid of its masks
-/// oscillates (DetectOscillation) and the clamps hold its mesh.
-SwingScale MeasureSwingScale(const PreparedRecording& prepared);
+/// oscillates (DetectOscillation) and the clamps hold its mesh;
+/// `area_weighted`: for the area-weighted model (SlowestModeRate).
+SwingScale MeasureSwingScale(const PreparedRecording& prepared, bool area_weighted = false);
+
+/// For a clamped object, the direction from the clamps' centre to the
+/// object's centroid averaged over every frame, degrees in the image (0: +x,
+/// 90: +y): the way it hangs (SearchScales::hanging_angle_deg). NaN without
+/// clamps or object.
+double HangingAngleDeg(const PreparedRecording& prepared);
 
 /// The scales of the training recordings `training` (>= 1), combined as
 /// SearchScales says, for a model simulated with `simulation` (the implicit
-/// step reaches 100x stiffer); swing_stiffness from the first training
-/// recording (MeasureSwingScale), used by the stages with inertia.
+/// step reaches 100x stiffer); swing_stiffness and its period from the
+/// first training recording (MeasureSwingScale), and hanging_angle_deg
+/// (HangingAngleDeg), used by the stages with inertia.
 SearchScales TrainingScales(const std::vector<std::shared_ptr<const PreparedRecording>>& training,
                             const SimulationOptions& simulation);
 
