@@ -285,9 +285,9 @@ std::vector<HeldLine> FindHeldLines(const std::vector<RectPx>& regions,
     bool crosses = false;
     for (const HeldLine& other : kept) {
       const int a = line.axis, b = 1 - a;
-      auto within = [](double v, double e0, double e1, bool open) {
-        const double lo = std::min(e0, e1), hi = std::max(e0, e1);
-        return open ? (v > lo && v < hi) : (v >= lo && v <= hi);
+      // Strictly between the ends: meeting at an end is a shared node.
+      auto between = [](double v, double e0, double e1) {
+        return v > std::min(e0, e1) && v < std::max(e0, e1);
       };
       if (other.axis == a) {
         // Parallel: they clash only on the same line, overlapping.
@@ -300,8 +300,8 @@ std::vector<HeldLine> FindHeldLines(const std::vector<RectPx>& regions,
         // Perpendicular: where they meet must not be inside both.
         const double along_line = other.end[0][b];   // other's constant coordinate
         const double along_other = line.end[0][a];   // line's constant coordinate
-        crosses = within(along_line, line.end[0][b], line.end[1][b], true) &&
-                  within(along_other, other.end[0][a], other.end[1][a], true);
+        crosses = between(along_line, line.end[0][b], line.end[1][b]) &&
+                  between(along_other, other.end[0][a], other.end[1][a]);
       }
       if (crosses) break;
     }

@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
@@ -23,6 +24,24 @@ constexpr auto kForceKernelNames = std::to_array<EnumName<ForceKernel>>({
     {ForceKernel::kAvx512, "avx512"},
 });
 
+// Each triangle's edges (ab, bc, ca) as indices of mesh.edges.
+std::vector<std::array<int, 3>> TriangleEdges(const Mesh& mesh) {
+  std::map<std::pair<int, int>, int> edge_index;
+  for (size_t e = 0; e < mesh.edges.size(); ++e) {
+    edge_index[{mesh.edges[e][0], mesh.edges[e][1]}] = static_cast<int>(e);
+  }
+  std::vector<std::array<int, 3>> edges(mesh.triangles.size());
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int from = mesh.triangles[t][k], to = mesh.triangles[t][(k + 1) % 3];
+      const auto it = edge_index.find({std::min(from, to), std::max(from, to)});
+      if (it == edge_index.end()) throw std::invalid_argument("Model: mesh edge list is incomplete");
+      edges[t][k] = it->second;
+    }
+  }
+  return edges;
+}
+
 }  // namespace
 
 std::string ToString(ForceKernel kernel) { return EnumToString(kForceKernelNames, kernel); }
@@ -32,11 +51,9 @@ Model::Model(const Mesh& mesh) : mesh_(&mesh) {
   edge_i_.resize(num_edges);
   edge_j_.resize(num_edges);
   for (std::vector<double>* column : {&rest_length_, &inv_rest_length_}) column->resize(num_edges);
-  std::map<std::pair<int, int>, int> edge_index;
   for (size_t e = 0; e < num_edges; ++e) {
     edge_i_[e] = mesh.edges[e][0];
     edge_j_[e] = mesh.edges[e][1];
-    edge_index[{mesh.edges[e][0], mesh.edges[e][1]}] = static_cast<int>(e);
   }
   for (std::vector<int>* column : {&triangle_a_, &triangle_b_, &triangle_c_, &triangle_edge_ab_,
                                    &triangle_edge_bc_, &triangle_edge_ca_}) {
@@ -46,21 +63,15 @@ Model::Model(const Mesh& mesh) : mesh_(&mesh) {
        {&rest_area_, &inv_rest_area_, &rest_cos_a_, &rest_sin_a_, &rest_cos_b_, &rest_sin_b_}) {
     column->resize(num_triangles);
   }
+  const std::vector<std::array<int, 3>> triangle_edges = TriangleEdges(mesh);
   for (size_t t = 0; t < num_triangles; ++t) {
     const auto [a, b, c] = mesh.triangles[t];
     triangle_a_[t] = a;
     triangle_b_[t] = b;
     triangle_c_[t] = c;
-    std::array<int, 3> edge;
-    for (int k = 0; k < 3; ++k) {
-      const int from = mesh.triangles[t][k], to = mesh.triangles[t][(k + 1) % 3];
-      const auto it = edge_index.find({std::min(from, to), std::max(from, to)});
-      if (it == edge_index.end()) throw std::invalid_argument("Model: mesh edge list is incomplete");
-      edge[k] = it->second;
-    }
-    triangle_edge_ab_[t] = edge[0];
-    triangle_edge_bc_[t] = edge[1];
-    triangle_edge_ca_[t] = edge[2];
+    triangle_edge_ab_[t] = triangle_edges[t][0];
+    triangle_edge_bc_[t] = triangle_edges[t][1];
+    triangle_edge_ca_[t] = triangle_edges[t][2];
   }
 
   // The contributions to each node in the order the plain scatter adds them
@@ -204,29 +215,17 @@ AreaWeights ComputeAreaWeights(const Mesh& mesh) {
   w.edge.assign(mesh.NumEdges(), 0.0);
   w.triangle.assign(mesh.NumTriangles(), 0.0);
   w.angle.assign(mesh.NumTriangles(), 1.0);
-  // Edge indices by node pair, for the triangles' sides.
-  std::vector<std::vector<std::pair<int, int>>> edges_of(mesh.NumNodes());
-  for (int e = 0; e < mesh.NumEdges(); ++e) {
-    edges_of[mesh.edges[e][0]].emplace_back(mesh.edges[e][1], e);
-  }
-  auto edge_index = [&](int i, int j) {
-    if (i > j) std::swap(i, j);
-    for (const auto& [other, e] : edges_of[i]) {
-      if (other == j) return e;
-    }
-    throw std::logic_error(fmt::format("ComputeAreaWeights: no edge ({}, {})", i, j));
-  };
+  const std::vector<std::array<int, 3>> triangle_edges = TriangleEdges(mesh);
   for (int t = 0; t < mesh.NumTriangles(); ++t) {
     const auto& tri = mesh.triangles[t];
-    const double area = SignedArea(mesh.rest_positions[tri[0]], mesh.rest_positions[tri[1]],
-                                   mesh.rest_positions[tri[2]]);
+    const double area = mesh.rest_area_px2[t];
     w.triangle[t] = area / lattice_triangle;
     // A third of the area to each corner and each side: over two lattice
     // triangles (a node's share of the lattice) and over two thirds of one
     // (an edge's).
     for (int k = 0; k < 3; ++k) {
       w.node[tri[k]] += area / (6.0 * lattice_triangle);
-      w.edge[edge_index(tri[k], tri[(k + 1) % 3])] += area / (2.0 * lattice_triangle);
+      w.edge[triangle_edges[t][k]] += area / (2.0 * lattice_triangle);
     }
   }
   return w;

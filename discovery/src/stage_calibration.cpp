@@ -70,19 +70,15 @@ SwingScale MeasureSwingScale(const PreparedRecording& prepared, bool area_weight
 }
 
 double HangingAngleDeg(const PreparedRecording& prepared) {
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   const std::optional<Vec2> clamp = ClampCentre(prepared.scene);
-  if (!clamp) return std::numeric_limits<double>::quiet_NaN();
-  Vec2 sum = Vec2::Zero();
-  int frames = 0;
-  for (const BitMask& mask : prepared.object_masks) {
-    const MaskMoments moments = ComputeMoments(mask);
-    if (moments.area_px == 0) continue;
-    sum += moments.centroid_px;
-    ++frames;
-  }
-  if (frames == 0) return std::numeric_limits<double>::quiet_NaN();
-  const Vec2 away = sum / frames - *clamp;
-  if (away.norm() == 0.0) return std::numeric_limits<double>::quiet_NaN();
+  const Scene::ObservedMotion& motion = prepared.scene.motion;
+  if (!clamp || !motion.known || prepared.object_masks.empty()) return kNaN;
+  // The mean centroid is frame 0's plus the observed mean offset from it.
+  const Vec2 mean = ComputeMoments(prepared.object_masks.front()).centroid_px +
+                    motion.equilibrium_offset_px;
+  const Vec2 away = mean - *clamp;
+  if (!away.allFinite() || away.norm() == 0.0) return kNaN;
   return std::atan2(away.y(), away.x()) * (180.0 / std::numbers::pi);
 }
 

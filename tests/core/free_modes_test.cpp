@@ -79,12 +79,15 @@ INSTANTIATE_TEST_SUITE_P(FreeModes, SwingPeriod, ::testing::Bool(),
 
 // The point of area weighting: the same strip meshed at other spacings near
 // the reference edge (as each recording's frame-0 outline gives another
-// mesh) keeps its mass and stiffness per area, so it swings at nearly the
-// same rate; with a mass per node and a stiffness per element it does not.
+// mesh) keeps its mass and stiffness per area, so it swings at a rate
+// nearer the reference mesh's than with a mass per node and a stiffness
+// per element.
 TEST(FreeModes, AreaWeightingKeepsTheSwingOfTheSameStripOnOtherMeshes) {
+  // Not the strip the angle springs' weight was chosen on (40 x 160 px,
+  // leaning right): wider, longer, leaning left.
   Scene scene = calib::testing::StillScene(2, 240.0);
-  scene.clamps.push_back({95.0, 95.0, 50.0, 10.0});  // the top 5 px of the strip
-  const std::vector<Vec2> strip = {Vec2(100, 100), Vec2(140, 100), Vec2(150, 260), Vec2(110, 260)};
+  scene.clamps.push_back({95.0, 95.0, 70.0, 10.0});  // the top 5 px of the strip
+  const std::vector<Vec2> strip = {Vec2(100, 100), Vec2(160, 100), Vec2(140, 340), Vec2(80, 340)};
   auto mesh_at = [&](double edge) {
     MesherOptions options;
     options.edge_length_px = edge;
@@ -95,7 +98,6 @@ TEST(FreeModes, AreaWeightingKeepsTheSwingOfTheSameStripOnOtherMeshes) {
     return SlowestModeRate(mesh, ClampedNodes(mesh, scene), mesh.rest_positions, weighted);
   };
   const Mesh reference = mesh_at(20.0);
-  double worst_weighted = 0.0, worst_plain = 0.0;
   for (const double edge : {18.0, 22.0, 25.0}) {
     const Mesh other = mesh_at(edge);
     ASSERT_NE(other.NumNodes(), reference.NumNodes()) << edge;
@@ -103,12 +105,11 @@ TEST(FreeModes, AreaWeightingKeepsTheSwingOfTheSameStripOnOtherMeshes) {
     const double plain = std::abs(std::log(rate(other, false) / rate(reference, false)));
     RecordProperty("edge_" + std::to_string(static_cast<int>(edge)),
                    std::to_string(weighted) + " weighted, " + std::to_string(plain) + " plain");
-    worst_weighted = std::max(worst_weighted, weighted);
-    worst_plain = std::max(worst_plain, plain);
+    // Closer than unweighted at every spacing (6.5-11 % in rate against
+    // 10-18 % here): weighting narrows the mesh's hold on the swing, it
+    // does not remove it.
+    EXPECT_LT(weighted, plain) << "edge " << edge;
   }
-  // Rates within 5 % (periods within 2.5 %), and closer than unweighted.
-  EXPECT_LT(worst_weighted, 0.05);
-  EXPECT_LT(worst_weighted, worst_plain);
 }
 
 TEST(FreeModes, AMeshTheClampsDoNotHoldHasNoSwing) {

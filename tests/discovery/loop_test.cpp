@@ -538,7 +538,9 @@ TEST(Loop, WithoutAForceSensorTheShareOfThePushIsNotSearched) {
 TEST(Loop, AClampedObjectHangsFromItsClampsTowardsItsMeanCentroid) {
   PreparedRecording prepared;
   EXPECT_TRUE(std::isnan(HangingAngleDeg(prepared))) << "no clamps";
-  prepared.scene.clamps.push_back({40.0, 0.0, 20.0, 4.0});  // centre (50, 2)
+  prepared.recording.fps = 30.0;
+  prepared.recording.clamps.push_back({40, 0, 20, 4});
+  prepared.scene = BuildScene(prepared.recording);  // clamp centre (50, 2)
   // One pixel, centred at (69.5, 21.5) and then at (30.5, 21.5): it hangs
   // straight down on average.
   for (const int x : {69, 30}) {
@@ -546,9 +548,16 @@ TEST(Loop, AClampedObjectHangsFromItsClampsTowardsItsMeanCentroid) {
     mask.SetSpan(21, x, x + 1);
     prepared.object_masks.push_back(mask);
   }
+  const auto observe = [&] {
+    prepared.scene.motion = EstimateObservedMotion(prepared.recording, prepared.object_masks);
+  };
+  observe();
   EXPECT_NEAR(HangingAngleDeg(prepared), 90.0, 1e-9);
   prepared.object_masks.pop_back();  // only the right one: down and to the right
+  observe();
   EXPECT_NEAR(HangingAngleDeg(prepared), 45.0, 1e-9);
+  prepared.scene.motion = {};  // nothing observed
+  EXPECT_TRUE(std::isnan(HangingAngleDeg(prepared)));
 }
 
 TEST(Loop, TableFrictionIsSizedOnTheModelsDragNotOnTheSensor) {

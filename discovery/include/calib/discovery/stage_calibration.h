@@ -55,9 +55,10 @@ struct SwingScale {
 SwingScale MeasureSwingScale(const PreparedRecording& prepared, bool area_weighted = false);
 
 /// For a clamped object, the direction from the clamps' centre to the
-/// object's centroid averaged over every frame, degrees in the image (0: +x,
-/// 90: +y): the way it hangs (SearchScales::hanging_angle_deg). NaN without
-/// clamps or object.
+/// object's centroid averaged over every frame (frame 0's plus the scene's
+/// observed mean offset, EstimateObservedMotion), degrees in the image (0:
+/// +x, 90: +y): the way it hangs (SearchScales::hanging_angle_deg). NaN
+/// without clamps or an observed motion.
 double HangingAngleDeg(const PreparedRecording& prepared);
 
 /// The scales of the training recordings `training` (>= 1), combined as
