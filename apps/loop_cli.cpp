@@ -37,6 +37,7 @@ struct LoopRunFlags {
   double held_out_stretch = kDefaults.held_out_stretch;
   int refit_candidates = kDefaults.refit_candidates;
   int restarts = kDefaults.restarts;
+  double edge_length_px = kDefaults.preparation.mesher.edge_length_px;
   std::string cache_dir;
   bool no_cache = false;
   bool outline_contact = kDefaults.simulation.outline_contact;
@@ -149,6 +150,9 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
                   "springs: stable at any stiffness, docs/loop.md)")
       ->check(CLI::IsMember({"first_order", "implicit_first_order"}))
       ->capture_default_str();
+  cmd->add_option("--edge", f->edge_length_px, "target mesh edge length, pixels")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--cache-dir", f->cache_dir, "segmentation cache folder");
   cmd->add_flag("--no-cache", f->no_cache, "do not read or write the segmentation cache");
   cmd->add_flag("--no-html", f->no_html, "write the reports' JSON only (no report.html)");
@@ -173,6 +177,7 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.held_out_stretch = f.held_out_stretch;
   options.refit_candidates = f.refit_candidates;
   options.restarts = f.restarts;
+  options.preparation.mesher.edge_length_px = f.edge_length_px;
   options.write_html = !f.no_html;
   options.simulation.outline_contact = f.outline_contact;
   options.simulation.contact_friction = f.contact_friction;

@@ -84,7 +84,8 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
       discs_start_(scene.num_obstacles),
       definition_(model),
       parameter_specs_(ModelParameterSpecs(model)),
-      initial_motion_(mesh, clamped_) {
+      initial_motion_(mesh, clamped_),
+      substeps_(options.substeps) {
   Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (int i = 0; i < mesh.NumNodes(); ++i) {
     const Vec2& p = mesh.rest_positions[i];
@@ -118,6 +119,12 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
     if (hooks.dynamics) claim(dynamics_effect_, "the dynamics");
     effects_.push_back(std::move(effect));
   }
+  if (dynamics_effect_ != nullptr) {
+    for (auto* buffer : {&mode_u_, &mode_y_, &mode_still_, &probe_x_, &probe_f_}) {
+      buffer->assign(mesh.NumNodes(), Vec2::Zero());
+    }
+    mode_probe_px_ = 1e-4 * std::max(MeasureQuality(mesh).mean_edge_px, 1.0);
+  }
   if (options.area_weighted && dynamics_effect_ != nullptr) {
     AreaWeights weights = ComputeAreaWeights(mesh);
     model_.SetElementWeights(weights.edge, weights.triangle, weights.angle);
@@ -149,6 +156,7 @@ void Simulator::Reset(const ModelParameters& params) {
   }
   params_ = params;
   second_order_ = false;
+  substeps_ = options_.substeps;
   ResetState();
   ConfigureIntegrator();
 }
@@ -190,8 +198,99 @@ void Simulator::Reset(const ParameterValues& values) {
       second_order_damping_per_s_ = *damping;
     }
   }
+  substeps_ = options_.substeps;
   ResetState();
   ConfigureIntegrator();
+  if (second_order_ && status_ == SimulationStatus::kRunning) ChooseStableSubsteps();
+}
+
+template <class Apply>
+double Simulator::FastestModeRate(Apply&& apply) {
+  // Power iteration in the M inner product from a fixed alternating field
+  // (the fastest modes alternate from node to node), so the estimate is the
+  // same on every run. The Rayleigh quotient u^T J u / u^T M u approaches
+  // the largest rate from below; the margin covers what 30 rounds miss.
+  constexpr int kRounds = 30;
+  const size_t n = x_.size();
+  const auto mass = [&](size_t i) {
+    return params_.mass * (mass_weight_.empty() ? 1.0 : mass_weight_[i]);
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const double sign = (i % 2 == 0) ? 1.0 : -1.0;
+    const double turn = (i / 2) % 2 == 0 ? 0.5 : -0.5;
+    mode_u_[i] = inverse_weight_[i] == 0.0 ? Vec2::Zero() : Vec2(sign, turn * sign);
+  }
+  double rate = 0.0;
+  for (int round = 0; round < kRounds; ++round) {
+    double norm_sq = 0.0;
+    for (size_t i = 0; i < n; ++i) norm_sq += mass(i) * mode_u_[i].squaredNorm();
+    if (!(norm_sq > 0.0) || !std::isfinite(norm_sq)) break;
+    const double scale = 1.0 / std::sqrt(norm_sq);
+    for (Vec2& u : mode_u_) u *= scale;
+    apply(mode_u_, mode_y_);
+    double quotient = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      if (inverse_weight_[i] == 0.0) continue;
+      quotient += mode_u_[i].dot(mode_y_[i]);
+      mode_u_[i] = mode_y_[i] / mass(i);
+    }
+    if (!std::isfinite(quotient)) return quotient;
+    rate = std::max(rate, std::abs(quotient));
+  }
+  return rate;
+}
+
+void Simulator::ChooseStableSubsteps() {
+  const size_t n = x_.size();
+  // J u for the springs (K, by central differences of the forces at zero
+  // velocity, the effects' forces included) and for the edge damping (D,
+  // linear in the velocities: minus the forces of the damping alone).
+  ModelParameters stiffness = params_;
+  stiffness.k_damping = 0.0;
+  ModelParameters damping = params_;
+  damping.k_distance = damping.k_area = damping.k_angle = 0.0;
+  const double probe_px = mode_probe_px_;
+  const auto forces_at = [&](std::span<const Vec2> x, std::span<Vec2> f) {
+    model_.ComputeForces(stiffness, x, mode_still_, f, force_workspace_);
+    for (const EffectTerm* effect : force_effects_) effect->AddForces(x, mode_still_, f, nullptr);
+  };
+  const double lambda_k = FastestModeRate([&](std::span<const Vec2> u, std::span<Vec2> out) {
+    for (size_t i = 0; i < n; ++i) probe_x_[i] = x_[i] + probe_px * u[i];
+    forces_at(probe_x_, probe_f_);
+    for (size_t i = 0; i < n; ++i) probe_x_[i] = x_[i] - probe_px * u[i];
+    forces_at(probe_x_, out);
+    for (size_t i = 0; i < n; ++i) out[i] = (out[i] - probe_f_[i]) / (2.0 * probe_px);
+  });
+  const double lambda_d =
+      params_.k_damping == 0.0
+          ? 0.0
+          : FastestModeRate([&](std::span<const Vec2> u, std::span<Vec2> out) {
+              model_.ComputeForces(damping, x_, u, out, force_workspace_);
+              for (Vec2& f : out) f = -f;
+            });
+  if (!std::isfinite(lambda_k) || !std::isfinite(lambda_d)) {
+    Fail(fmt::format("the second-order step's fastest mode could not be estimated at frame 0 "
+                     "(rates {} /s^2 and {} /s)",
+                     lambda_k, lambda_d));
+    return;
+  }
+  // The largest h with margin (h^2 lambda_K + 2 h lambda_D) <= 4.
+  const double a = kStabilityMargin * lambda_k, b = 2.0 * kStabilityMargin * lambda_d;
+  double h_max = std::numeric_limits<double>::infinity();
+  if (a > 0.0) {
+    h_max = (-b + std::sqrt(b * b + 16.0 * a)) / (2.0 * a);
+  } else if (b > 0.0) {
+    h_max = 4.0 / b;
+  }
+  const double needed = std::ceil(scene_.frame_time_s / h_max);
+  if (needed > kMaxSubsteps) {
+    Fail(fmt::format(
+        "the second-order step needs {:.0f} substeps a frame to be stable at these stiffnesses "
+        "(fastest mode {:.3g} rad/s; at most {}): springs too stiff for their mass",
+        needed, std::sqrt(lambda_k), kMaxSubsteps));
+    return;
+  }
+  substeps_ = std::max(options_.substeps, static_cast<int>(needed));
 }
 
 void Simulator::StartFromObservedMotion() {
@@ -254,8 +353,8 @@ void Simulator::Fail(std::string reason) {
 bool Simulator::Substep(int substep) {
   if (status_ != SimulationStatus::kRunning) return false;
   const int n = mesh_.NumNodes();
-  const double h = scene_.frame_time_s / options_.substeps;
-  const double alpha0 = static_cast<double>(substep) / options_.substeps;
+  const double h = scene_.frame_time_s / substeps_;
+  const double alpha0 = static_cast<double>(substep) / substeps_;
 
   if (implicit_ && substep == 0 && !shape_stiffness_effects_.empty()) {
     // Springs that stiffen with strain: their stiffness at this frame's
@@ -309,7 +408,7 @@ bool Simulator::Substep(int substep) {
 
   // The obstacles where the substep starts and where it ends.
   std::copy(discs_.begin(), discs_.end(), discs_start_.begin());
-  InterpolateObstacles(static_cast<double>(substep + 1) / options_.substeps);
+  InterpolateObstacles(static_cast<double>(substep + 1) / substeps_);
 
   if (second_order_) {
     std::copy(x_.begin(), x_.end(), x_prev_.begin());

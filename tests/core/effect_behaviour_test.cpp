@@ -14,6 +14,8 @@
 #include <functional>
 #include <numbers>
 
+#include <Eigen/Eigenvalues>
+
 #include "calib/core/mesher.h"
 #include "calib/core/model.h"
 #include "calib/core/simulator.h"
@@ -108,6 +110,88 @@ TEST(InertiaEffect, GravityMakesAClampedStripSag) {
   RunToEnd(sim, [&](int, const std::vector<Vec2>& x) {
     ASSERT_LT(MaxDisplacement(mesh, x), 1e-12) << "no gravity, no motion";
   });
+}
+
+// The second-order step is explicit in the springs: stiff enough springs
+// need more substeps than options.substeps to be stable. Each candidate
+// takes the fewest with kStabilityMargin h^2 lambda_max <= 4, lambda_max the
+// fastest mode rate of M^-1 K (here from a dense eigen solve of the
+// finite-difference stiffness, independent of the simulator's power
+// iteration), and runs; one that would need more than kMaxSubsteps fails
+// saying so.
+TEST(InertiaEffect, StiffSpringsTakeTheSubstepsTheSecondOrderStepNeeds) {
+  const Mesh mesh = MakeGridMesh(10, 2, 10.0, Vec2(100, 100));  // 100 x 20 px
+  Scene scene = StillScene(30);
+  scene.clamps.push_back({99.0, 99.0, 2.0, 22.0});  // left end
+  SimulationOptions options;
+  const auto scaled = [](double factor) {
+    ModelParameters p = Base();
+    p.k_distance *= factor;
+    p.k_area *= factor;
+    p.k_angle *= factor;
+    p.k_damping = 0.0;
+    return p;
+  };
+  const ParameterValues effect = {
+      {"inertia_damping_per_s", 0.0}, {"gravity_px_s2", 20.0}, {"gravity_angle_deg", 90.0}};
+  Simulator sim(mesh, scene, options, ModelDefinition{{"inertia"}});
+
+  // The fastest mode of M^-1 K at the rest shape, movable nodes only.
+  const auto fastest_rate = [&](const ModelParameters& p) {
+    Model model(mesh);
+    ForceWorkspace ws = model.MakeWorkspace();
+    std::vector<int> free_nodes;
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      if (sim.clamped()[i] == 0) free_nodes.push_back(i);
+    }
+    const int m = 2 * static_cast<int>(free_nodes.size());
+    Eigen::MatrixXd k(m, m);
+    std::vector<Vec2> x = mesh.rest_positions, f_plus(x.size()), f_minus(x.size());
+    const std::vector<Vec2> v(x.size(), Vec2::Zero());
+    constexpr double kProbe = 1e-4;
+    for (int c = 0; c < m; ++c) {
+      Vec2& node = x[free_nodes[c / 2]];
+      node[c % 2] += kProbe;
+      model.ComputeForces(p, x, v, f_plus, ws);
+      node[c % 2] -= 2.0 * kProbe;
+      model.ComputeForces(p, x, v, f_minus, ws);
+      node[c % 2] += kProbe;
+      for (int r = 0; r < m; ++r) {
+        const int i = free_nodes[r / 2];
+        k(r, c) = -(f_plus[i][r % 2] - f_minus[i][r % 2]) / (2.0 * kProbe) / p.mass;
+      }
+    }
+    const Eigen::MatrixXd symmetric = 0.5 * (k + k.transpose());
+    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(symmetric).eigenvalues().maxCoeff();
+  };
+
+  // Soft springs: the paper's substeps.
+  sim.Reset(Values(scaled(1.0), effect));
+  ASSERT_EQ(sim.status(), SimulationStatus::kRunning);
+  EXPECT_EQ(sim.substeps(), options.substeps);
+
+  // 10^5 times stiffer: more substeps, as many as the bound asks (the power
+  // iteration's estimate may fall a little short of the eigenvalue).
+  const ModelParameters stiff = scaled(1e5);
+  const double lambda = fastest_rate(stiff);
+  const double needed =
+      std::ceil(scene.frame_time_s * std::sqrt(Simulator::kStabilityMargin * lambda) / 2.0);
+  ASSERT_GT(needed, options.substeps);
+  sim.Reset(Values(stiff, effect));
+  ASSERT_EQ(sim.status(), SimulationStatus::kRunning);
+  EXPECT_LE(sim.substeps(), needed);
+  EXPECT_GE(sim.substeps(), 0.9 * needed);
+  // ... and it runs, the strip held near its rest shape by its stiffness.
+  while (sim.Advance()) {
+  }
+  ASSERT_EQ(sim.status(), SimulationStatus::kFinished) << sim.failure_reason();
+  EXPECT_LT(MaxDisplacement(mesh, sim.positions()), 1.0);
+
+  // Beyond kMaxSubsteps the candidate fails with the reason.
+  sim.Reset(Values(scaled(1e12), effect));
+  EXPECT_EQ(sim.status(), SimulationStatus::kFailed);
+  EXPECT_NE(sim.failure_reason().find("substeps a frame"), std::string::npos)
+      << sim.failure_reason();
 }
 
 // Area weighted, gravity still accelerates every node alike (its pull is in

@@ -42,6 +42,14 @@ class InertiaEffect final : public EffectTerm {
             {"gravity_px_s2", "px/s^2", "inertia: strength of gravity in the image plane", 0.0,
              kUnbounded, false,
              [](const SearchScales& s) {
+               // A clamped object filmed from the side hangs in the image
+               // plane: where the recording gives its scale, gravity is
+               // 9.81 m/s^2 in its pixels, not a fit (a fitted strength
+               // trades against the springs: a swing's rate is theirs and
+               // gravity's together).
+               if (std::isfinite(s.hanging_angle_deg) && s.mm_per_px > 0.0) {
+                 return SearchBox::Fixed(9810.0 / s.mm_per_px);
+               }
                // 9.81 m/s^2 in pixels; an unknown scale is taken as 0.25 mm/px
                // (the box reaches twice that, so any scale down to 0.125 mm/px fits).
                return SearchBox::Linear(0.0, 2.0 * (9810.0 / SearchScales::Positive(s.mm_per_px, 0.25)));

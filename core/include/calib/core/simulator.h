@@ -105,17 +105,36 @@ class Simulator {
   template <class AfterSubstep>
   bool Advance(AfterSubstep&& after_substep) {
     if (status_ != SimulationStatus::kRunning) return false;
-    for (int s = 0; s < options_.substeps; ++s) {
+    for (int s = 0; s < substeps_; ++s) {
       if (!Substep(s)) return false;
       after_substep(s);
     }
     return FinishFrame();
   }
 
-  /// Substep s of options.substeps from the current frame towards the next,
+  /// Substep s of substeps() from the current frame towards the next,
   /// without advancing the frame (exposed for benchmarks). Returns false on
   /// failure.
   bool Substep(int substep);
+
+  /// Steps per frame of the current candidate: options.substeps, or with
+  /// the inertia effect's second-order step as many more as it needs to be
+  /// stable at this candidate's stiffness (StableSubsteps below).
+  int substeps() const { return substeps_; }
+
+  /// The second-order step x += h v / (1 + h c) + h^2 M^-1 F is explicit in
+  /// the springs and the edge damping: for a mode of M^-1 K rate lambda_K
+  /// and of M^-1 D rate lambda_D it is stable while h^2 lambda_K + 2 h
+  /// lambda_D < 4. The fastest modes (a short edge's stretch) are far
+  /// faster than a swing: a strip stiff enough to swing at its video's
+  /// period can need several times the paper's 10 substeps a frame, and at
+  /// 10 it turns a triangle over within a frame. So each candidate with
+  /// inertia takes the least number of substeps, at least options.substeps,
+  /// with kStabilityMargin (h^2 lambda_K + 2 h lambda_D) <= 4, both rates
+  /// estimated at frame 0 by power iteration; a candidate that would need
+  /// more than kMaxSubsteps fails, saying so.
+  static constexpr double kStabilityMargin = 2.0;
+  static constexpr int kMaxSubsteps = 1000;
 
   int frame() const { return frame_; }
   SimulationStatus status() const { return status_; }
@@ -152,6 +171,14 @@ class Simulator {
   void ConfigureIntegrator();
   void StartFromObservedMotion();
   void StepDampedSecondOrder(double h, double damping_per_s, double mass);
+  // The substeps the second-order step needs to be stable for the current
+  // candidate at frame 0 (see kStabilityMargin); fails it beyond
+  // kMaxSubsteps.
+  void ChooseStableSubsteps();
+  // The largest eigenvalue of M^-1 J by power iteration, J u given by
+  // apply(u, out) for movable nodes; M the nodes' masses.
+  template <class Apply>
+  double FastestModeRate(Apply&& apply);
   void InterpolateObstacles(double alpha);
   // The implicit step's candidate contacts (step_contacts_) at the start of
   // a substep, against the obstacles where it ends (discs_).
@@ -208,6 +235,11 @@ class Simulator {
   std::vector<StepContact> step_contacts_;
   double last_step_px_ = 0.0;  // the longest node move of the last substep
   double snap_px_ = 0.0;  // half the mesh's mean rest edge length
+
+  int substeps_ = 1;  // steps per frame of this candidate (substeps())
+  // ChooseStableSubsteps' vectors (mode_still_: zero velocities).
+  std::vector<Vec2> mode_u_, mode_y_, mode_still_, probe_x_, probe_f_;
+  double mode_probe_px_ = 0.0;  // finite-difference step of K u
 
   int frame_ = 0;
   SimulationStatus status_ = SimulationStatus::kRunning;
