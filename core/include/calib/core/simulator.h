@@ -92,6 +92,8 @@ class Simulator {
   /// (Scene::motion) starts from it (initial_motion.h): the springs rest at
   /// the estimated equilibrium and the nodes move with the observed
   /// velocity; a failure to estimate them fails the simulation (status()).
+  /// With inertia it also chooses substeps() for the candidate, or fails it
+  /// when the step would need more than kMaxSubsteps.
   void Reset(const ParameterValues& values);
 
   /// Simulates from the current frame to the next. Returns false when the
@@ -119,7 +121,8 @@ class Simulator {
 
   /// Steps per frame of the current candidate: options.substeps, or with
   /// the inertia effect's second-order step as many more as it needs to be
-  /// stable at this candidate's stiffness (StableSubsteps below).
+  /// stable at this candidate's stiffness (kStabilityMargin below), chosen
+  /// by Reset(ParameterValues).
   int substeps() const { return substeps_; }
 
   /// The second-order step x += h v / (1 + h c) + h^2 M^-1 F is explicit in
