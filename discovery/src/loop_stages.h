@@ -52,6 +52,10 @@ struct Fit {
   int evaluations = 0;
   double seconds = 0.0;
   std::vector<int64_t> jobs;  ///< the store's jobs of its calibration
+  /// Those of `jobs` that scored their candidates on the whole training
+  /// recordings, as the fit's training score is (a swing's shorter
+  /// horizons do not): the candidates that rank against the fit.
+  std::vector<int64_t> whole_recording_jobs;
   std::vector<double> restart_training_xor;  ///< from scratch: each search's best
   /// Measure: per recording with clamps, the model's tip per frame
   /// simulated (the node farthest from the clamps' centre); empty otherwise.

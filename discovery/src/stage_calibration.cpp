@@ -299,6 +299,7 @@ std::pair<ParameterValues, double> StageCalibrator::RunJob(const std::string& na
   }
   fit->evaluations += static_cast<int>(run.evaluations);
   fit->jobs.push_back(job);
+  if (frames <= 0) fit->whole_recording_jobs.push_back(job);
   if (!run.best) {
     Log(fmt::format("loop: job {} found no candidate that simulates every training recording ({})",
                     name, run.stop_reason));
@@ -513,9 +514,9 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
   }
   fit.uninformative = every_job_flat && scored >= 2;
   Measure(&fit);
-  // A swing's jobs score shorter horizons than the whole recordings, so
-  // their candidates do not rank by the fit's training score.
-  if (!effects.empty() && !swing) RefitWhereHeldOutFails(&fit, previous);
+  // A swing's shorter horizons score fewer frames than the fit's training
+  // score: only its jobs over the whole recordings rank (whole_recording_jobs).
+  if (!effects.empty()) RefitWhereHeldOutFails(&fit, previous);
   fit.at_bounds = DiagnoseFit(settings, fit.values, {}).at_bounds;
   fit.seconds = Since(start);
   return fit;
@@ -597,7 +598,7 @@ void StageCalibrator::RefitWhereHeldOutFails(Fit* fit, const Fit* reference) con
                                        "(held out) from frame {}",
                                        recs_[static_cast<size_t>(failed)].name, failure.failure_frame);
   std::vector<EvaluationRecord> evaluations;
-  for (int64_t job : fit->jobs) {
+  for (int64_t job : fit->whole_recording_jobs) {
     for (EvaluationRecord& e : store_.Evaluations(job)) evaluations.push_back(std::move(e));
   }
   const std::vector<ParameterValues> candidates =
@@ -715,7 +716,7 @@ void StageCalibrator::MeasureSensitivity(Fit* fit) const {
 void StageCalibrator::MeasureEquallyGood(Fit* fit) const {
   if (!WholeRecordingsHeldOut() || o_.equally_good_fits == 0) return;
   std::vector<EvaluationRecord> evaluations;
-  for (int64_t job : fit->jobs) {
+  for (int64_t job : fit->whole_recording_jobs) {
     for (EvaluationRecord& e : store_.Evaluations(job)) evaluations.push_back(std::move(e));
   }
   // Equally good: worse than the best on the training recordings by no more

@@ -189,6 +189,7 @@ class Refit : public ::testing::Test {
     Fit fit;
     fit.values = values;
     fit.jobs = {job};
+    fit.whole_recording_jobs = {job};
     EvaluationResult train;
     train.status = EvaluationStatus::kOk;
     train.xor_sum = 1000;
@@ -238,6 +239,29 @@ TEST_F(Refit, TakesTheBestCandidateOnTrainingThatSimulatesEveryHeldOutRecording)
   EXPECT_NE(fit.refit.find("of its next 3 candidates by training XOR, number 2 is the first that "
                            "simulates every held-out recording"),
             std::string::npos)
+      << fit.refit;
+}
+
+// A swing calibration's shorter horizons score fewer frames: their
+// candidates' lower scores do not rank against the fit's, and only its
+// jobs over the whole recordings give the refit its candidates.
+TEST_F(Refit, RanksOnlyTheCandidatesOfJobsOverTheWholeRecordings) {
+  ResultStore store(calib::testing::ScratchDir("refit_horizons") / "store.sqlite");
+  const int64_t short_horizon = store.CreateJob("inertia-frames45", nlohmann::json::object());
+  const int64_t whole = store.CreateJob("inertia", nlohmann::json::object());
+  ParameterValues softer = Stiff();
+  softer["k_D"] *= 0.5;
+  const std::vector<EvaluationRecord> short_history = {Candidate(0, softer, 50.0)};
+  const std::vector<EvaluationRecord> whole_history = {Candidate(0, Rejected(-1.0), 100.0),
+                                                       Candidate(1, Stiff(), 200.0)};
+  store.RecordEvaluations(short_horizon, short_history);
+  store.RecordEvaluations(whole, whole_history);
+
+  Fit fit = FailingFit(Rejected(-2.0), whole);
+  fit.jobs = {short_horizon, whole};
+  Run(&fit, 24, store);
+  EXPECT_EQ(fit.values, Stiff()) << fit.refit;
+  EXPECT_NE(fit.refit.find("of its next 2 candidates by training XOR, number 2"), std::string::npos)
       << fit.refit;
 }
 
