@@ -37,6 +37,7 @@ struct LoopRunFlags {
   double held_out_stretch = kDefaults.held_out_stretch;
   int refit_candidates = kDefaults.refit_candidates;
   int restarts = kDefaults.restarts;
+  bool own_meshes = !kDefaults.carry_object_model;
   double edge_length_px = kDefaults.preparation.mesher.edge_length_px;
   std::string cache_dir;
   bool no_cache = false;
@@ -133,6 +134,10 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
                   "recordings is the base fit")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_flag("--own-meshes", f->own_meshes,
+                "mesh every held-out recording and estimate its rest shape on its own, even where "
+                "it shows the training recording's object (by default that object's mesh, rest "
+                "shape and element areas are carried to it, docs/loop.md)");
   cmd->add_option("--overlays", f->overlays,
                   "overlay frames per recording at the worst moments (base and final model)")
       ->check(CLI::NonNegativeNumber)
@@ -177,6 +182,7 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.held_out_stretch = f.held_out_stretch;
   options.refit_candidates = f.refit_candidates;
   options.restarts = f.restarts;
+  options.carry_object_model = !f.own_meshes;
   options.preparation.mesher.edge_length_px = f.edge_length_px;
   options.write_html = !f.no_html;
   options.simulation.outline_contact = f.outline_contact;

@@ -207,7 +207,13 @@ void Model::SetElementWeights(std::span<const double> edge_weight,
   angle_weight_.assign(angle_weight.begin(), angle_weight.end());
 }
 
-AreaWeights ComputeAreaWeights(const Mesh& mesh) {
+AreaWeights ComputeAreaWeights(const Mesh& mesh, std::span<const double> triangle_areas) {
+  if (!triangle_areas.empty() && triangle_areas.size() != mesh.rest_area_px2.size()) {
+    throw std::invalid_argument(fmt::format("area weights: {} triangle areas for a mesh of {} triangles",
+                                            triangle_areas.size(), mesh.rest_area_px2.size()));
+  }
+  const std::span<const double> areas =
+      triangle_areas.empty() ? std::span<const double>(mesh.rest_area_px2) : triangle_areas;
   const double lattice_triangle =
       std::sqrt(3.0) / 4.0 * kAreaWeightReferenceEdgePx * kAreaWeightReferenceEdgePx;
   AreaWeights w;
@@ -218,7 +224,7 @@ AreaWeights ComputeAreaWeights(const Mesh& mesh) {
   const std::vector<std::array<int, 3>> triangle_edges = TriangleEdges(mesh);
   for (int t = 0; t < mesh.NumTriangles(); ++t) {
     const auto& tri = mesh.triangles[t];
-    const double area = mesh.rest_area_px2[t];
+    const double area = areas[t];
     w.triangle[t] = area / lattice_triangle;
     // A third of the area to each corner and each side: over two lattice
     // triangles (a node's share of the lattice) and over two thirds of one

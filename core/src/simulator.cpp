@@ -126,7 +126,7 @@ Simulator::Simulator(const Mesh& mesh, const Scene& scene, const SimulationOptio
     mode_probe_px_ = 1e-4 * std::max(MeasureQuality(mesh).mean_edge_px, 1.0);
   }
   if (options.area_weighted && dynamics_effect_ != nullptr) {
-    AreaWeights weights = ComputeAreaWeights(mesh);
+    AreaWeights weights = ComputeAreaWeights(mesh, scene.motion.element_area_px2);
     model_.SetElementWeights(weights.edge, weights.triangle, weights.angle);
     mass_weight_ = std::move(weights.node);
     inverse_mass_weight_.resize(mass_weight_.size());

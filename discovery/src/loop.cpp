@@ -11,6 +11,7 @@
 #include "calib/discovery/report_html.h"
 #include "calib/discovery/report_overlays.h"
 #include "calib/evaluator/mask_geometry.h"
+#include "calib/evaluator/object_transfer.h"
 #include "calib/jobs/batch_evaluator.h"
 #include "calib/jobs/fit_diagnostics.h"
 #include "calib/results/store.h"
@@ -129,6 +130,11 @@ class Loop {
     if (log_) log_(line);
   }
   void Prepare();
+  // `held_out` with the first training recording's object model where it
+  // shows that object (LoopOptions::carry_object_model), else as it is;
+  // says which in the log and the report's notes.
+  std::shared_ptr<const PreparedRecording> CarryTrainingObject(
+      std::shared_ptr<const PreparedRecording> held_out);
   ReportStage MakeStage(const Fit& fit, const std::string& tried, StageDecision decision) const;
   // Logs what the calibration's history says about the fit, if anything.
   void LogFitDiagnostics(const Fit& fit) const;
@@ -150,6 +156,22 @@ class Loop {
   std::unique_ptr<KeepCriterion> criterion_;
   std::unique_ptr<StageCalibrator> calibrator_;
 };
+
+std::shared_ptr<const PreparedRecording> Loop::CarryTrainingObject(
+    std::shared_ptr<const PreparedRecording> held_out) {
+  const auto training = std::find_if(recs_.begin(), recs_.end(), [](const LoopRecording& r) { return r.train; });
+  if (!o_.carry_object_model || training == recs_.end() ||
+      training->prepared->scene.motion.node_rest_px.empty()) {
+    return held_out;
+  }
+  PreparedRecording carried = *held_out;
+  const ObjectTransfer transfer =
+      CarryObjectModel(*training->prepared, carried, o_.preparation.motion_window_s);
+  Log(transfer.reason);
+  report_.notes.push_back(transfer.reason);
+  if (!transfer.carried) return held_out;
+  return std::make_shared<const PreparedRecording>(std::move(carried));
+}
 
 void Loop::Prepare() {
   std::set<std::string> names;
@@ -177,7 +199,7 @@ void Loop::Prepare() {
   };
   if (!o_.holdout.empty()) {
     for (const fs::path& p : o_.train) add(p, prepare(p, true), true, 0, "");
-    for (const fs::path& p : o_.holdout) add(p, prepare(p, false), false, 0, "");
+    for (const fs::path& p : o_.holdout) add(p, CarryTrainingObject(prepare(p, false)), false, 0, "");
   } else {
     // No held-out recording: calibrate on the first frames of each training
     // video and hold out the rest (whole videos are scored there, but only

@@ -51,8 +51,9 @@ Eigen::Matrix2d BestRotation(const std::array<Vec2, 3>& rest, const std::array<V
 
 class Tracker {
  public:
-  Tracker(const Mesh& mesh, std::span<const uint8_t> clamped, const ShapeTrackingOptions& options)
-      : mesh_(mesh), options_(options) {
+  Tracker(const Mesh& mesh, std::span<const uint8_t> clamped, std::span<const Vec2> reference,
+          const ShapeTrackingOptions& options)
+      : mesh_(mesh), reference_(reference), options_(options) {
     const int n = mesh.NumNodes();
     unknown_.assign(n, -1);
     for (int i = 0; i < n; ++i) {
@@ -138,10 +139,10 @@ class Tracker {
       }
     };
 
-    // Rigidity: every triangle edge (i, j) wants x_i - x_j = R_t (X_i - X_j).
+    // Rigidity: every triangle edge (i, j) wants x_i - x_j = R_t (X_i - X_j),
+    // X the reference shape.
     for (const std::array<int, 3>& t : mesh_.triangles) {
-      const std::array<Vec2, 3> rest{mesh_.rest_positions[t[0]], mesh_.rest_positions[t[1]],
-                                     mesh_.rest_positions[t[2]]};
+      const std::array<Vec2, 3> rest{reference_[t[0]], reference_[t[1]], reference_[t[2]]};
       const std::array<Vec2, 3> now{x[t[0]], x[t[1]], x[t[2]]};
       const Eigen::Matrix2d r = BestRotation(rest, now);
       for (int k = 0; k < 3; ++k) {
@@ -187,6 +188,7 @@ class Tracker {
   }
 
   const Mesh& mesh_;
+  std::span<const Vec2> reference_;  // #N: the shape each triangle is held to
   ShapeTrackingOptions options_;
   std::vector<int> unknown_;  // node -> unknown index, -1 for clamped nodes
   int num_unknowns_ = 0;
@@ -204,7 +206,7 @@ class Tracker {
 
 TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
                         std::span<const BitMask> masks, int count,
-                        const ShapeTrackingOptions& options) {
+                        const ShapeTrackingOptions& options, std::span<const Vec2> reference) {
   if (!(options.outline_weight > 0.0) || !std::isfinite(options.outline_weight)) {
     throw std::invalid_argument(fmt::format(
         "shape tracking: outline_weight must be positive and finite, got {}", options.outline_weight));
@@ -226,12 +228,18 @@ TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
     throw std::invalid_argument(
         fmt::format("shape tracking: {} frames asked of a recording of {}", count, masks.size()));
   }
+  if (!reference.empty() && reference.size() != static_cast<size_t>(mesh.NumNodes())) {
+    throw std::invalid_argument(fmt::format(
+        "shape tracking: a reference shape of {} nodes for a mesh of {} nodes", reference.size(),
+        mesh.NumNodes()));
+  }
+  if (reference.empty()) reference = mesh.rest_positions;
   TrackedShapes tracked;
   tracked.positions.reserve(count);
   tracked.outline_distance_px.reserve(count);
   tracked.positions.push_back(mesh.rest_positions);
   tracked.outline_distance_px.push_back(0.0);
-  Tracker tracker(mesh, clamped, options);
+  Tracker tracker(mesh, clamped, reference, options);
   for (int f = 1; f < count; ++f) {
     const std::vector<Vec2>& last = tracked.positions[f - 1];
     std::vector<Vec2> x = last;

@@ -9,6 +9,7 @@
 
 #include "support/test_support.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -16,6 +17,9 @@
 #include <cstdint>
 #include <map>
 #include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace calib {
 namespace {
@@ -299,6 +303,32 @@ TEST(Model, AreaWeightsShareTheAreaAndAreOneInsideTheLattice) {
     const Vec2 mid = 0.5 * (mesh.rest_positions[mesh.edges[e][0]] + mesh.rest_positions[mesh.edges[e][1]]);
     if (mid.x() < 60 || mid.x() > 240 || mid.y() < 60 || mid.y() > 140) continue;
     EXPECT_NEAR(w.edge[e], 1.0, 1e-9) << "edge " << e;
+  }
+}
+
+// Given triangle areas (an object's elements measured on another recording
+// of it) weigh as a mesh resting with those areas would; a list of the wrong
+// length is refused naming both counts.
+TEST(Model, AreaWeightsOfGivenTriangleAreasAreThoseOfAMeshWithThem) {
+  const Mesh mesh = MeshPolygon({Vec2(0, 0), Vec2(120, 0), Vec2(120, 80), Vec2(0, 80)}, {});
+  Mesh other = mesh;
+  for (int t = 0; t < other.NumTriangles(); ++t) other.rest_area_px2[t] *= 1.0 + 0.01 * (t % 7);
+  const AreaWeights given = ComputeAreaWeights(mesh, other.rest_area_px2);
+  const AreaWeights own = ComputeAreaWeights(other);
+  EXPECT_EQ(given.node, own.node);
+  EXPECT_EQ(given.edge, own.edge);
+  EXPECT_EQ(given.triangle, own.triangle);
+  EXPECT_EQ(given.angle, own.angle);
+  EXPECT_NE(given.node, ComputeAreaWeights(mesh).node);
+  const std::vector<double> short_list(mesh.NumTriangles() - 1, 1.0);
+  try {
+    ComputeAreaWeights(mesh, short_list);
+    ADD_FAILURE() << "a short list of areas was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(fmt::format("{} triangle areas for a mesh of {} triangles",
+                                                     short_list.size(), mesh.NumTriangles())),
+              std::string::npos)
+        << e.what();
   }
 }
 

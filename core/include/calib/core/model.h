@@ -151,7 +151,9 @@ struct AreaWeights {
   std::vector<double> angle;     ///< #T, the angle springs (1)
 };
 
-/// The weights of `mesh` at its rest positions.
-AreaWeights ComputeAreaWeights(const Mesh& mesh);
+/// The weights of `mesh` at its rest positions; with `triangle_areas` (#T),
+/// the weights of triangles of those areas (px^2) instead: an object's
+/// elements as measured on another recording of it.
+AreaWeights ComputeAreaWeights(const Mesh& mesh, std::span<const double> triangle_areas = {});
 
 }  // namespace calib

@@ -44,6 +44,11 @@ struct Scene {
     /// otherwise; when set they replace the estimate from the centroid.
     std::vector<Vec2> node_rest_px;
     std::vector<Vec2> node_velocity_px_s;
+    /// Per triangle of the prepared mesh (#T), where the mesh was carried
+    /// from another recording of the object (evaluator/object_transfer.h):
+    /// the triangles' areas there, px^2, which weight the masses and
+    /// stiffnesses of an area-weighted model. Empty: the mesh's own.
+    std::vector<double> element_area_px2;
   };
   ObservedMotion motion;
 

@@ -112,6 +112,13 @@ struct LoopOptions {
   /// its equally good fits. A flat or two-basin training error lands one
   /// search in the worse basin as often as not (docs/loop.md).
   int restarts = 3;
+  /// A held-out recording of the object the first training recording
+  /// shows (a clamped object held in the same clamps, whose outline the
+  /// training mesh reaches on registration: evaluator/object_transfer.h) is
+  /// simulated with the training recording's mesh, rest shape and element
+  /// areas, from its own frame-0 pose and velocities. Off: every recording
+  /// is meshed and its rest shape estimated on its own.
+  bool carry_object_model = true;
   SimulationOptions simulation = LoopSimulationDefaults();
   PreparationOptions preparation;
   /// Report: overlay PNGs of the worst frames (base and final model).

@@ -59,12 +59,15 @@ struct TrackedShapes {
 };
 
 /// Tracks `mesh` (frame 0's) through the first `count` frames of `masks`
-/// (count <= masks.size()); nodes with clamped[i] != 0 stay put. Throws
-/// std::invalid_argument for options out of range or `clamped` of the wrong
-/// size.
+/// (count <= masks.size()); nodes with clamped[i] != 0 stay put. The
+/// rigidity term holds each triangle to its shape in `reference` (#N
+/// positions; empty: the mesh's frame-0 positions), rotated. Throws
+/// std::invalid_argument for options out of range, or `clamped` or
+/// `reference` of the wrong size.
 TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
                         std::span<const BitMask> masks, int count,
-                        const ShapeTrackingOptions& options = {});
+                        const ShapeTrackingOptions& options = {},
+                        std::span<const Vec2> reference = {});
 
 /// The start of a free motion, per node, from tracked shapes.
 struct NodeMotion {
