@@ -111,20 +111,18 @@ ObjectTransfer CarryObjectModel(const PreparedRecording& from, PreparedRecording
   }
   // Registered onto `to`'s frame-0 outline, each triangle held to its rest
   // shape.
-  Mesh moving = from.mesh;
-  moving.rest_positions = start;
-  const std::vector<BitMask> target{to.object_masks[0], to.object_masks[0]};
   ShapeTrackingOptions options;
   options.max_iterations = kRegistrationIterations;
-  const TrackedShapes registered = TrackMesh(moving, clamped, target, 2, options, rest);
-  result.outline_distance_px = registered.outline_distance_px[1];
+  const MeshRegistration registered =
+      RegisterMesh(from.mesh, clamped, start, rest, to.object_masks[0], options);
+  result.outline_distance_px = registered.outline_distance_px;
   if (!(result.outline_distance_px <= kMaxCarriedOutlineDistancePx)) {
     return refuse(fmt::format(
         "the mesh of {} reaches its frame-0 outline only within {:.2f} px on average, over the {} px "
         "of another recording of the same object",
         Name(from), result.outline_distance_px, kMaxCarriedOutlineDistancePx));
   }
-  const std::vector<Vec2>& x = registered.positions[1];
+  const std::vector<Vec2>& x = registered.positions;
   for (int t = 0; t < from.mesh.NumTriangles(); ++t) {
     const auto& tri = from.mesh.triangles[t];
     if (!(SignedArea(x[tri[0]], x[tri[1]], x[tri[2]]) > 0.0)) {

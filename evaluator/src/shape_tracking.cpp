@@ -202,11 +202,10 @@ class Tracker {
   bool analysed_ = false;
 };
 
-}  // namespace
-
-TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
-                        std::span<const BitMask> masks, int count,
-                        const ShapeTrackingOptions& options, std::span<const Vec2> reference) {
+// Throws std::invalid_argument, naming the culprit, for options out of
+// range or a clamp list that does not fit the mesh.
+void CheckTrackingArguments(const Mesh& mesh, std::span<const uint8_t> clamped,
+                            const ShapeTrackingOptions& options) {
   if (!(options.outline_weight > 0.0) || !std::isfinite(options.outline_weight)) {
     throw std::invalid_argument(fmt::format(
         "shape tracking: outline_weight must be positive and finite, got {}", options.outline_weight));
@@ -224,22 +223,43 @@ TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
     throw std::invalid_argument(fmt::format("shape tracking: {} clamp flags for a mesh of {} nodes",
                                             clamped.size(), mesh.NumNodes()));
   }
+}
+
+}  // namespace
+
+MeshRegistration RegisterMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
+                              std::span<const Vec2> start, std::span<const Vec2> reference,
+                              const BitMask& mask, const ShapeTrackingOptions& options) {
+  CheckTrackingArguments(mesh, clamped, options);
+  const size_t n = static_cast<size_t>(mesh.NumNodes());
+  if (start.size() != n || reference.size() != n) {
+    throw std::invalid_argument(fmt::format(
+        "shape registration: a start of {} and a reference shape of {} nodes for a mesh of {} nodes",
+        start.size(), reference.size(), n));
+  }
+  MeshRegistration result;
+  result.positions.assign(start.begin(), start.end());
+  if (mask.Count() == 0) return result;
+  Tracker tracker(mesh, clamped, reference, options);
+  result.outline_distance_px =
+      tracker.Register(ObjectOutline(mask, kOutlineTolerancePx), result.positions);
+  return result;
+}
+
+TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
+                        std::span<const BitMask> masks, int count,
+                        const ShapeTrackingOptions& options) {
+  CheckTrackingArguments(mesh, clamped, options);
   if (count < 1 || static_cast<size_t>(count) > masks.size()) {
     throw std::invalid_argument(
         fmt::format("shape tracking: {} frames asked of a recording of {}", count, masks.size()));
   }
-  if (!reference.empty() && reference.size() != static_cast<size_t>(mesh.NumNodes())) {
-    throw std::invalid_argument(fmt::format(
-        "shape tracking: a reference shape of {} nodes for a mesh of {} nodes", reference.size(),
-        mesh.NumNodes()));
-  }
-  if (reference.empty()) reference = mesh.rest_positions;
   TrackedShapes tracked;
   tracked.positions.reserve(count);
   tracked.outline_distance_px.reserve(count);
   tracked.positions.push_back(mesh.rest_positions);
   tracked.outline_distance_px.push_back(0.0);
-  Tracker tracker(mesh, clamped, reference, options);
+  Tracker tracker(mesh, clamped, mesh.rest_positions, options);
   for (int f = 1; f < count; ++f) {
     const std::vector<Vec2>& last = tracked.positions[f - 1];
     std::vector<Vec2> x = last;

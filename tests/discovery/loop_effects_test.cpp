@@ -115,7 +115,7 @@ TEST(LoopOnSyntheticEffect, InertiaWithGravity) {
       << "/s";
 
   // The release from another pose, held out, is predicted at mean IoU 0.90
-  // or better (0.977 here, seed 1). It is simulated with the training
+  // or better (0.9765 here, seed 1). It is simulated with the training
   // recording's mesh, rest shape and element areas (object_transfer.h);
   // meshed on its own from its more bent frame 0 it swung 1.9 % slower at
   // the same parameters and drifted out of phase (0.887).

@@ -132,6 +132,58 @@ TEST(ShapeTracking, ASwingDoesNotShrinkTheRestShape) {
   EXPECT_LT(worst, 0.01);
 }
 
+TEST(ShapeTracking, ARegistrationHoldsTheTrianglesToTheReferenceShape) {
+  // The mask shows the straight strip turned 0.2 rad about its clamped top,
+  // and the registration starts there, with the outline terms weighted low
+  // so that the rigidity term counts. Held to the straight shape it stays
+  // (within the pixel outline); held to the strip bent into an arc, the
+  // nodes move towards the bend (3.1 px at worst against 0.35).
+  const Mesh straight = Strip();
+  const Vec2 pivot(100, 40);
+  constexpr double kRadius = 100.0, kTurn = -0.2;
+  const auto bend = [&](const Vec2& p) -> Vec2 {
+    const double s = p.y() - pivot.y(), t = p.x() - pivot.x();
+    return Vec2(pivot.x() + kRadius - (kRadius - t) * std::cos(s / kRadius),
+                pivot.y() + (kRadius - t) * std::sin(s / kRadius));
+  };
+  std::vector<Vec2> bent, turned;
+  for (const Vec2& p : straight.rest_positions) {
+    bent.push_back(bend(p));
+    turned.push_back(Rotated(p, pivot, kTurn));
+  }
+  std::vector<uint8_t> clamped(straight.NumNodes(), 0);
+  for (int i = 0; i < straight.NumNodes(); ++i) clamped[i] = straight.rest_positions[i].y() == 40.0;
+  const std::vector<Vec2> corners{{85, 40}, {115, 40}, {115, 160}, {85, 160}};
+  std::vector<Vec2> turned_corners;
+  for (const Vec2& c : corners) turned_corners.push_back(Rotated(c, pivot, kTurn));
+  const BitMask mask = PolygonMask(turned_corners);
+
+  const auto worst_error = [&](const std::vector<Vec2>& x) {
+    double worst = 0.0;
+    for (int i = 0; i < straight.NumNodes(); ++i) worst = std::max(worst, (x[i] - turned[i]).norm());
+    return worst;
+  };
+  ShapeTrackingOptions options;
+  options.outline_weight = 0.1;  // the rigidity term counts
+  const MeshRegistration held_straight =
+      RegisterMesh(straight, clamped, turned, straight.rest_positions, mask, options);
+  const MeshRegistration held_bent = RegisterMesh(straight, clamped, turned, bent, mask, options);
+  EXPECT_LT(held_straight.outline_distance_px, 0.5);
+  EXPECT_LT(held_bent.outline_distance_px, 1.0);
+  EXPECT_LT(worst_error(held_straight.positions), 1.0);
+  EXPECT_GT(worst_error(held_bent.positions), 2.0 * worst_error(held_straight.positions));
+  for (int i = 0; i < straight.NumNodes(); ++i) {
+    if (clamped[i] != 0) {
+      EXPECT_EQ(held_bent.positions[i], turned[i]) << "clamped node " << i;
+    }
+  }
+  // A mask without object pixels leaves the start.
+  const MeshRegistration none = RegisterMesh(straight, clamped, bent, straight.rest_positions,
+                                             BitMask(kFrameWidth, kFrameHeight));
+  EXPECT_EQ(none.positions, bent);
+  EXPECT_EQ(none.outline_distance_px, -1.0);
+}
+
 TEST(ShapeTracking, BadArgumentsAreNamed) {
   const Mesh mesh = Strip();
   const std::vector<BitMask> masks(3, BitMask(kFrameWidth, kFrameHeight));
@@ -152,6 +204,18 @@ TEST(ShapeTracking, BadArgumentsAreNamed) {
   ShapeTrackingOptions options;
   options.outline_weight = 0.0;
   EXPECT_NE(message([&] { TrackMesh(mesh, none, masks, 2, options); }).find("outline_weight"),
+            std::string::npos);
+  EXPECT_NE(message([&] {
+              RegisterMesh(mesh, none, std::vector<Vec2>(3), mesh.rest_positions, masks[0]);
+            }).find("a start of 3 and a reference shape of"),
+            std::string::npos);
+  EXPECT_NE(message([&] {
+              RegisterMesh(mesh, none, mesh.rest_positions, std::vector<Vec2>(2), masks[0]);
+            }).find("a reference shape of 2 nodes for a mesh of"),
+            std::string::npos);
+  EXPECT_NE(message([&] {
+              RegisterMesh(mesh, none, mesh.rest_positions, mesh.rest_positions, masks[0], options);
+            }).find("outline_weight"),
             std::string::npos);
   TrackedShapes one;
   one.positions.push_back(mesh.rest_positions);

@@ -113,8 +113,9 @@ struct LoopOptions {
   /// search in the worse basin as often as not (docs/loop.md).
   int restarts = 3;
   /// A held-out recording of the object the first training recording
-  /// shows (a clamped object held in the same clamps, whose outline the
-  /// training mesh reaches on registration: evaluator/object_transfer.h) is
+  /// shows (held in the same clamps, its own rest shape of the same area,
+  /// its frame-0 outline reached by the training mesh on registration:
+  /// evaluator/object_transfer.h) is
   /// simulated with the training recording's mesh, rest shape and element
   /// areas, from its own frame-0 pose and velocities. Off: every recording
   /// is meshed and its rest shape estimated on its own.

@@ -59,15 +59,30 @@ struct TrackedShapes {
 };
 
 /// Tracks `mesh` (frame 0's) through the first `count` frames of `masks`
-/// (count <= masks.size()); nodes with clamped[i] != 0 stay put. The
-/// rigidity term holds each triangle to its shape in `reference` (#N
-/// positions; empty: the mesh's frame-0 positions), rotated. Throws
-/// std::invalid_argument for options out of range, or `clamped` or
-/// `reference` of the wrong size.
+/// (count <= masks.size()); nodes with clamped[i] != 0 stay put. Throws
+/// std::invalid_argument for options out of range or `clamped` of the wrong
+/// size.
 TrackedShapes TrackMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
                         std::span<const BitMask> masks, int count,
-                        const ShapeTrackingOptions& options = {},
-                        std::span<const Vec2> reference = {});
+                        const ShapeTrackingOptions& options = {});
+
+/// One registration of the mesh onto an outline.
+struct MeshRegistration {
+  std::vector<Vec2> positions;        ///< #N, px
+  /// Mean distance of the boundary nodes to the outline, px; -1 for a mask
+  /// without object pixels (the positions are then the start).
+  double outline_distance_px = -1.0;
+};
+
+/// Registers `mesh` onto the outline of `mask`, from the positions `start`
+/// (#N; nodes with clamped[i] != 0 stay there), the rigidity term holding
+/// each triangle to its shape in `reference` (#N), rotated: TrackMesh's
+/// registration of one frame, with another rest shape than frame 0's.
+/// Throws std::invalid_argument as TrackMesh does, and for `start` or
+/// `reference` of the wrong size.
+MeshRegistration RegisterMesh(const Mesh& mesh, std::span<const uint8_t> clamped,
+                              std::span<const Vec2> start, std::span<const Vec2> reference,
+                              const BitMask& mask, const ShapeTrackingOptions& options = {});
 
 /// The start of a free motion, per node, from tracked shapes.
 struct NodeMotion {
