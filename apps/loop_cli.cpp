@@ -37,6 +37,7 @@ struct LoopRunFlags {
   double held_out_stretch = kDefaults.held_out_stretch;
   int refit_candidates = kDefaults.refit_candidates;
   int restarts = kDefaults.restarts;
+  int effect_restarts = kDefaults.effect_restarts;
   bool own_meshes = !kDefaults.carry_object_model;
   double edge_length_px = kDefaults.preparation.mesher.edge_length_px;
   std::string cache_dir;
@@ -134,6 +135,12 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
                   "recordings is the base fit")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_option("--effect-restarts", f->effect_restarts,
+                  "calibrations of each hypothesis tried, each from its own seed (the new "
+                  "effect's search from seeded points of its box after the first); each is a "
+                  "hypothesis of the keep rule's test, and the largest passing drop is kept")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_flag("--own-meshes", f->own_meshes,
                 "mesh every held-out recording and estimate its rest shape on its own, even where "
                 "it shows the training recording's object (by default that object's mesh, rest "
@@ -182,6 +189,7 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.held_out_stretch = f.held_out_stretch;
   options.refit_candidates = f.refit_candidates;
   options.restarts = f.restarts;
+  options.effect_restarts = f.effect_restarts;
   options.carry_object_model = !f.own_meshes;
   options.preparation.mesher.edge_length_px = f.edge_length_px;
   options.write_html = !f.no_html;

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 
 namespace calib {
@@ -36,10 +37,18 @@ const Hypothesis* Find(const std::vector<Hypothesis>& ranked, const std::string&
   return it == ranked.end() ? nullptr : &*it;
 }
 
+// The effect's stage among those tried; of several calibrations of it
+// (LoopOptions::effect_restarts) a significant one before the others, then
+// the largest held-out drop: the one the round would keep.
 const ReportStage* Tried(const std::vector<const ReportStage*>& tried, const std::string& effect) {
-  const auto it = std::find_if(tried.begin(), tried.end(),
-                               [&](const ReportStage* s) { return s->effect_tried == effect; });
-  return it == tried.end() ? nullptr : *it;
+  const ReportStage* best = nullptr;
+  const auto rank = [](const ReportStage* s) {
+    return std::make_pair(s->test.frames > 0 && s->test.significant, s->test.frames > 0 ? s->test.drop : -HUGE_VAL);
+  };
+  for (const ReportStage* s : tried) {
+    if (s->effect_tried == effect && (best == nullptr || rank(best) < rank(s))) best = s;
+  }
+  return best;
 }
 
 std::string TestLine(const std::string& effect, const ReportStage& s) {

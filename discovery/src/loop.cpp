@@ -77,6 +77,9 @@ bool LoopOptions::IsValid(std::string* error) const {
     return fail(fmt::format("loop: --refit-candidates = {}: must be >= 0", refit_candidates));
   }
   if (restarts < 1) return fail(fmt::format("loop: --restarts = {}: must be >= 1", restarts));
+  if (effect_restarts < 1) {
+    return fail(fmt::format("loop: --effect-restarts = {}: must be >= 1", effect_restarts));
+  }
   if (overlays_per_recording < 0) {
     return fail(fmt::format("loop: overlays per recording = {}: must be >= 0",
                             overlays_per_recording));
@@ -456,16 +459,25 @@ LoopResult Loop::Run() {
     std::vector<size_t> stage_index;
     std::vector<KeepCriterion::Verdict> verdicts;
     std::vector<size_t> p_index;
+    // Each hypothesis is calibrated effect_restarts times; each calibration
+    // is tested, and counts in the correction, on its own.
+    std::vector<std::pair<std::string, int>> calibrations;
     for (const std::string& effect : tries) {
+      for (int r = 0; r < o_.effect_restarts; ++r) calibrations.emplace_back(effect, r);
+    }
+    for (const auto& [effect, restart] : calibrations) {
       std::vector<std::string> effects = current.effects;
       effects.push_back(effect);
+      const std::string which =
+          o_.effect_restarts > 1 ? fmt::format(", calibration {} of {}", restart + 1, o_.effect_restarts)
+                                 : std::string();
       Log(calibrator_->StartsCold(effects, current)
               ? fmt::format("round {}: calibrating {} from scratch, over horizons from two swing "
-                            "periods (a first-order fit's stiffnesses are no start for a swing)",
-                            round, StageName(effects))
-              : fmt::format("round {}: calibrating {} (warm start from {})", round,
-                            StageName(effects), StageName(current.effects)));
-      Fit fit = calibrator_->Calibrate(index, effects, &current);
+                            "periods (a first-order fit's stiffnesses are no start for a swing){}",
+                            round, StageName(effects), which)
+              : fmt::format("round {}: calibrating {} (warm start from {}{})", round,
+                            StageName(effects), StageName(current.effects), which));
+      Fit fit = calibrator_->Calibrate(index, effects, &current, restart);
       if (!fit.refit.empty()) Log(fmt::format("round {}: {}: {}", round, StageName(effects), fit.refit));
       LogFitDiagnostics(fit);
       calibrator_->MeasureEquallyGood(&fit);
@@ -481,7 +493,9 @@ LoopResult Loop::Run() {
           ablation.AllOk() && ablation.XorSum(recs_, true) < current.XorSum(recs_, true);
       KeepCriterion::Verdict v = criterion_->Judge(
           current, ablation_better ? &ablation : nullptr, fit, o_.seed * 1000 + static_cast<uint64_t>(index));
-      ++index;
+      // A hypothesis's calibrations share its stage index (their jobs and
+      // seeds differ by restart), so its first is a loop's without restarts.
+      if (restart + 1 == o_.effect_restarts) ++index;
       if (ablation_better) {
         v.reason = fmt::format(
             "against the previous model with this calibration's values and {} off (training "
@@ -492,6 +506,7 @@ LoopResult Loop::Run() {
       p_index.push_back(p_values.size());
       p_values.push_back(v.test.p_value);
       ReportStage stage = MakeStage(fit, effect, StageDecision::kRejected);
+      stage.restart = fit.restart;
       stage.criterion = "held-out XOR drop";
       stage.criterion_value = v.test.total;
       stage.test = {v.test.frames, v.test.blocks,  v.test.total, v.test.total_low,
@@ -518,8 +533,10 @@ LoopResult Loop::Run() {
       if (pass && (best < 0 || v.test.total > verdicts[static_cast<size_t>(best)].test.total)) {
         best = static_cast<int>(i);
       }
-      Log(fmt::format("round {}: {}: {}{}", round, StageName(fits[i].effects), stage.reason,
-                      EquallyGoodLine(fits[i].equally_good)));
+      Log(fmt::format("round {}: {}{}: {}{}", round, StageName(fits[i].effects),
+                      o_.effect_restarts > 1 ? fmt::format(" (calibration {})", fits[i].restart + 1)
+                                             : std::string(),
+                      stage.reason, EquallyGoodLine(fits[i].equally_good)));
     }
     if (best < 0) {
       AddConfusions(round, ranked, stage_index);
@@ -534,8 +551,11 @@ LoopResult Loop::Run() {
     kept.reason += "; the largest passing drop of this round: kept";
     for (size_t i = 0; i < fits.size(); ++i) {
       if (static_cast<int>(i) != best && verdicts[i].eligible && report_.stages[stage_index[i]].test.significant) {
-        report_.stages[stage_index[i]].reason += fmt::format(
-            "; passes, but {} drops more: not kept", fits[best].effects.back());
+        report_.stages[stage_index[i]].reason +=
+            fits[i].effects.back() == fits[best].effects.back()
+                ? fmt::format("; passes, but calibration {} of {} drops more: not kept",
+                              fits[best].restart + 1, fits[best].effects.back())
+                : fmt::format("; passes, but {} drops more: not kept", fits[best].effects.back());
       }
     }
     current = std::move(fits[best]);

@@ -137,6 +137,7 @@ std::string LoopCommandLine(const LoopOptions& o) {
   // Only where it is not the default, so that the lines of loops run before
   // the option existed still match.
   if (o.rank_by_rate) line += " --rank-by rate";
+  if (o.effect_restarts != 1) line += fmt::format(" --effect-restarts {}", o.effect_restarts);
   if (!o.write_html) line += " --no-html";
   return line;
 }

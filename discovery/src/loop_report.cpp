@@ -188,6 +188,7 @@ json ToJson(const ReportStage& s) {
     for (double x : s.restart_training_xor) restarts.push_back(JsonNumber(x));
     j["restart_training_xor"] = restarts;
   }
+  if (s.restart > 0) j["restart"] = s.restart;
   if (s.uninformative) j["uninformative"] = true;
   if (!s.at_bounds.empty()) j["at_bounds"] = s.at_bounds;
   return j;
@@ -219,6 +220,10 @@ ReportStage StageFromJson(const json& j, const std::string& path) {
   s.reason = in.Text("reason");
   s.calibration_time_s = in.Num("calibration_time_s");
   s.evaluations = static_cast<int>(in.Int("evaluations"));
+  if (j.contains("restart")) {  // optional: the first calibration of a hypothesis has none
+    s.restart = static_cast<int>(in.Int("restart"));
+    if (s.restart < 1) BadReportKey(in.Path("restart"), "expected at least 1");
+  }
   if (j.contains("equally_good")) {  // optional: measured only for kept models
     const In g(in.Raw("equally_good"), in.Path("equally_good"));
     s.equally_good.fits = static_cast<int>(g.Int("fits"));

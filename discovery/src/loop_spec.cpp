@@ -103,6 +103,7 @@ LoopSpec ParseLoopSpec(const std::string& text, const std::string& source, const
   ReadInRange<int>(r, "equally_good_fits", 0, std::numeric_limits<int>::max(), &o.equally_good_fits);
   ReadInRange<int>(r, "refit_candidates", 0, std::numeric_limits<int>::max(), &o.refit_candidates);
   ReadInRange<int>(r, "restarts", 1, std::numeric_limits<int>::max(), &o.restarts);
+  ReadInRange<int>(r, "effect_restarts", 1, std::numeric_limits<int>::max(), &o.effect_restarts);
   ReadInRange<int>(r, "overlays", 0, std::numeric_limits<int>::max(), &o.overlays_per_recording);
   r.Read("outline_contact", &o.simulation.outline_contact);
   ReadInRange(r, "contact_friction", 0.0, std::numeric_limits<double>::max(),
@@ -144,6 +145,7 @@ nlohmann::json ToJson(const LoopSpec& spec) {
           {"equally_good_fits", o.equally_good_fits},
           {"refit_candidates", o.refit_candidates},
           {"restarts", o.restarts},
+          {"effect_restarts", o.effect_restarts},
           {"overlays", o.overlays_per_recording},
           {"outline_contact", o.simulation.outline_contact},
           {"contact_friction", o.simulation.contact_friction},

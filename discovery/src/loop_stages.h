@@ -73,6 +73,9 @@ struct Fit {
   /// What a refit where the calibration's best failed on a held-out
   /// recording did (LoopOptions::refit_candidates); empty when none ran.
   std::string refit;
+  /// Which of the calibrations of its hypothesis this is (0: the first;
+  /// LoopOptions::effect_restarts).
+  int restart = 0;
 
   /// The XOR sum over the training (or held-out) recordings; held out: over
   /// their compared frames. +infinity where a recording failed.
@@ -144,8 +147,12 @@ class StageCalibrator {
 
   /// Calibration `index` of the base model plus `effects`: from scratch
   /// (independent searches) or warm-started from the fit `warm` of the
-  /// model without the last effect. Measured on every recording.
-  Fit Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm);
+  /// model without the last effect. Measured on every recording. A warm
+  /// start's `restart` > 0 (LoopOptions::effect_restarts) starts the new
+  /// effect's search at RestartStart's point of its box instead of its
+  /// neutral values.
+  Fit Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm,
+                int restart = 0);
   /// Whether Calibrate starts `effects` from scratch although a fit `warm`
   /// of the model without its last effect is given: adding inertia to a
   /// first-order model of a swinging object (SearchScales::swing_stiffness).

@@ -312,7 +312,8 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
        "<th>evaluations</th><th>time (s)</th></tr>\n";
   for (const ReportStage& s : report.stages) {
     h << "<tr class=\"" << ToString(s.decision) << "\"><td>" << Escape(s.name) << "</td><td>"
-      << Escape(s.effect_tried) << "</td><td>" << ToString(s.decision) << "</td><td>"
+      << Escape(s.effect_tried) << (s.restart > 0 ? " (calibration " + std::to_string(s.restart + 1) + ")" : "")
+      << "</td><td>" << ToString(s.decision) << "</td><td>"
       << Escape(s.criterion) << " = " << Num(s.criterion_value, 4) << TestText(s.test)
       << "</td><td>" << Escape(s.reason) << EquallyGoodText(s.equally_good)
       << RestartsText(s.restart_training_xor) << "</td><td>" << Params(s.parameters)

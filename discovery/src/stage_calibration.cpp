@@ -217,9 +217,12 @@ double Since(Clock::time_point start) {
 // amount, one at a time.
 constexpr double kSensitivityNudge = 1e-3;
 
-std::string JobName(int index, const std::vector<std::string>& effects) {
+// Calibration `restart` > 0 of a hypothesis (LoopOptions::effect_restarts)
+// shares its stage's index: its jobs are named apart.
+std::string JobName(int index, const std::vector<std::string>& effects, int restart) {
   std::string name = fmt::format("stage{}-base", index);
   for (const std::string& e : effects) name += "." + e;
+  if (restart > 0) name += fmt::format("-calibration{}", restart + 1);
   return name;
 }
 
@@ -350,7 +353,7 @@ ParameterValues StageCalibrator::CalibrateSwing(int index, const std::vector<std
   const int64_t first_budget =
       horizons.size() == 1 ? budget : std::max<int64_t>(kMinJob, budget / 2);
   const int64_t later_budget = horizons.size() == 1 ? 0 : std::max<int64_t>(kMinJob, budget);
-  const std::string base_name = JobName(index, effects);
+  const std::string base_name = JobName(index, effects, fit->restart);
   const auto horizon_name = [&](int h) {
     return h == 0 ? base_name : fmt::format("{}-frames{}", base_name, h);
   };
@@ -413,7 +416,8 @@ bool StageCalibrator::StartsCold(const std::vector<std::string>& effects, const 
   return scales_.swing_stiffness > 0.0 && HasInertia(effects) && !HasInertia(warm.effects);
 }
 
-Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm) {
+Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effects, const Fit* warm,
+                               int restart) {
   const Clock::time_point start = Clock::now();
   const Fit* const previous = warm;
   if (warm != nullptr && StartsCold(effects, *warm)) warm = nullptr;
@@ -421,9 +425,12 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
   if (warm != nullptr) scales.reference = warm->values;
   const std::vector<ParameterSetting> settings = StageParameterSettings(effects, scales);
   const int64_t budget = (effects.empty() || o_.effect_budget == 0) ? o_.budget : o_.effect_budget;
-  const uint64_t seed = o_.seed * 1000 + static_cast<uint64_t>(index);
+  // A hypothesis's first calibration has the seed a loop without
+  // effect restarts gives it; the others seeds of their own.
+  const uint64_t seed = o_.seed * 1000 + static_cast<uint64_t>(index) + 1000000 * static_cast<uint64_t>(restart);
   Fit fit;
   fit.effects = effects;
+  fit.restart = restart;
   const bool swing = warm == nullptr && scales_.swing_stiffness > 0.0 && HasInertia(effects);
   if (swing) {
     fit.values = CalibrateSwing(index, effects, settings, budget, seed, &fit);
@@ -434,7 +441,7 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
     double best = std::numeric_limits<double>::infinity();
     for (int r = 0; r < o_.restarts; ++r) {
       const std::vector<double> x0 = RestartStart(dimension, seed, r);
-      const std::string name = JobName(index, effects) + (r == 0 ? "" : fmt::format("-restart{}", r));
+      const std::string name = JobName(index, effects, restart) + (r == 0 ? "" : fmt::format("-restart{}", r));
       const auto [values, score] = RunJob(name, effects, settings, r == 0 ? nullptr : &x0, 0.3, budget,
                                           seed + 100000 * static_cast<uint64_t>(r), &fit);
       fit.restart_training_xor.push_back(score);
@@ -479,9 +486,13 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
     // (kJointSigma of each unit box).
     const int64_t budget1 = std::max<int64_t>(2, budget / 4);
     const int64_t budget2 = std::max<int64_t>(2, budget - budget1);
-    std::vector<double> x1 = SearchSpace(effect_only).ToUnit(start_values);
+    // A restart starts the effect's search elsewhere in its box: the
+    // effect's basins are what the restarts are for.
+    std::vector<double> x1 = restart > 0
+                                 ? RestartStart(SearchSpace(effect_only).dimension(), seed, restart)
+                                 : SearchSpace(effect_only).ToUnit(start_values);
     for (double& u : x1) u = std::clamp(u, 0.0, 1.0);
-    const auto [values1, score1] = RunJob(JobName(index, effects) + "-effect", effects, effect_only,
+    const auto [values1, score1] = RunJob(JobName(index, effects, restart) + "-effect", effects, effect_only,
                                           &x1, 0.3, budget1, seed, &fit);
     // (A phase that found no candidate simulating every training recording
     // scores +inf; where none did, the fit is the warm start, which the
@@ -490,7 +501,7 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
         SearchSpace(settings).ToUnit(std::isfinite(score1) ? values1 : start_values);
     for (double& u : x2) u = std::clamp(u, 0.0, 1.0);
     constexpr double kJointSigma = 0.25;
-    const auto [values2, score2] = RunJob(JobName(index, effects), effects, settings, &x2,
+    const auto [values2, score2] = RunJob(JobName(index, effects, restart), effects, settings, &x2,
                                           kJointSigma, budget2, seed + 500, &fit);
     const double score0 = TrainingScore(effects, start_values);
     ++fit.evaluations;

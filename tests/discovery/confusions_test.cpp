@@ -53,6 +53,22 @@ TEST(Confusions, ExactlyOneSignificantSeparatesThePair) {
   EXPECT_EQ(Find(all, "plasticity", "viscoelastic"), nullptr);
 }
 
+// Of two calibrations of one effect (--effect-restarts), the evidence reads
+// the one the round would keep: a significant one, then the larger drop.
+TEST(Confusions, OfAnEffectsCalibrationsTheOneTheRoundWouldKeepIsRead) {
+  const std::vector<Hypothesis> ranked = {Traced("plasticity", 0.7), Traced("table_friction", 0.6)};
+  const ReportStage first = Tested("plasticity", 9000, -1000, 19000, 0.09, false);
+  ReportStage second = Tested("plasticity", 5000, 3000, 7000, 0.0002, true);
+  second.restart = 1;
+  const ReportStage friction = Tested("table_friction", 800, -500, 2100, 0.21, false);
+  const auto all = JudgeConfusions(1, ranked, {&first, &second, &friction}, 0.0, 0.05);
+  const ReportConfusion* c = Find(all, "plasticity", "table_friction");
+  ASSERT_NE(c, nullptr);
+  EXPECT_TRUE(c->separated);
+  EXPECT_NE(c->evidence.find("p = 0.0002"), std::string::npos) << c->evidence;
+  EXPECT_EQ(c->evidence.find("p = 0.0900"), std::string::npos) << c->evidence;
+}
+
 TEST(Confusions, OverlappingDropsCannotBeToldApart) {
   const std::vector<Hypothesis> ranked = {Traced("plasticity", 0.7), Traced("table_friction", 0.6)};
   const ReportStage plastic = Tested("plasticity", 5000, 3000, 7000, 0.0002, true);

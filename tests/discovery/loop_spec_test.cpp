@@ -37,6 +37,7 @@ TEST(LoopSpec, KeysLeftOutTakeTheLoopsDefaults) {
   EXPECT_EQ(o.equally_good_fits, defaults.equally_good_fits);
   EXPECT_EQ(o.refit_candidates, defaults.refit_candidates);
   EXPECT_EQ(o.restarts, defaults.restarts);
+  EXPECT_EQ(o.effect_restarts, defaults.effect_restarts);
   EXPECT_EQ(o.overlays_per_recording, defaults.overlays_per_recording);
   EXPECT_EQ(o.simulation.outline_contact, defaults.simulation.outline_contact);
   EXPECT_EQ(o.simulation.contact_friction, defaults.simulation.contact_friction);
@@ -65,6 +66,7 @@ held_out_stretch: 0.25
 equally_good_fits: 4
 refit_candidates: 5
 restarts: 2
+effect_restarts: 3
 overlays: 0
 outline_contact: false
 contact_friction: 0.25
@@ -89,6 +91,7 @@ html: false
   EXPECT_EQ(o.equally_good_fits, 4);
   EXPECT_EQ(o.refit_candidates, 5);
   EXPECT_EQ(o.restarts, 2);
+  EXPECT_EQ(o.effect_restarts, 3);
   EXPECT_EQ(o.overlays_per_recording, 0);
   EXPECT_FALSE(o.simulation.outline_contact);
   EXPECT_EQ(o.simulation.contact_friction, 0.25);
@@ -117,6 +120,7 @@ TEST(LoopSpec, EveryMalformedKeyIsNamedWithItsRule) {
       {"name: a\ntrain: [a]\nmin_drop: 0.6", "spec: min_drop = '0.6': must be in [0, 0.5]"},
       {"name: a\ntrain: [a]\nheld_out_stretch: 0.99", "spec: held_out_stretch = '0.99': must be in [0.05, 0.95]"},
       {"name: a\ntrain: [a]\nrestarts: 0", "spec: restarts = '0': must be >= 1"},
+      {"name: a\ntrain: [a]\neffect_restarts: 0", "spec: effect_restarts = '0': must be >= 1"},
       {"name: a\ntrain: [a]\noverlays: -2", "spec: overlays = '-2': must be >= 0"},
       {"name: a\ntrain: [a]\ncontact_friction: -1", "spec: contact_friction = '-1': must be >= 0"},
       {"name: a\ntrain: [a]\nintegrator: verlet", "spec: integrator = 'verlet': must be first_order or"},

@@ -284,6 +284,70 @@ TEST(Loop, SameSeedSameNumbersAtAnyThreadCount) {
             Numbers(other.report)["stages"][0]["parameters"]);
 }
 
+// With effect_restarts, each hypothesis is calibrated that many times, each
+// calibration its own jobs, the restarts' effect search from a seeded point
+// of the effect's box, and each calibration is a hypothesis of the keep
+// rule's correction. The first calibration is the one a loop without
+// restarts makes.
+TEST(Loop, EffectRestartsAreHypothesesOfTheirOwn) {
+  LoopOptions options = testing::TestLoopOptions({ExamplesDir() / "push_centre"},
+                                                 {ExamplesDir() / "push_offset"}, "loop_effect_restarts");
+  options.budget = 16;
+  options.restarts = 1;
+  options.effect_budget = 8;  // phases of 2 and 6
+  options.tries_per_round = 1;
+  options.min_confidence = 0.0;  // always try the top hypothesis
+  options.effect_restarts = 2;
+  const LoopResult result = RunLoop(options);
+  std::vector<const ReportStage*> tried;
+  for (const ReportStage& s : result.report.stages) {
+    if (!s.effect_tried.empty()) tried.push_back(&s);
+  }
+  ASSERT_EQ(tried.size(), 2u);
+  EXPECT_EQ(tried[0]->effect_tried, tried[1]->effect_tried);
+  EXPECT_EQ(tried[0]->restart, 0);
+  EXPECT_EQ(tried[1]->restart, 1);
+  for (const ReportStage* s : tried) {
+    if (s->test.frames > 0) {
+      EXPECT_EQ(s->test.hypotheses, 2) << "both calibrations count in the correction";
+    }
+  }
+  EXPECT_NE(tried[0]->parameters, tried[1]->parameters);
+  EXPECT_LE(std::count_if(tried.begin(), tried.end(),
+                          [](const ReportStage* s) { return s->decision == StageDecision::kAccepted; }),
+            1);
+  for (const ReportStage* s : tried) {
+    if (s->decision != StageDecision::kAccepted) continue;
+    for (const ReportStage* other : tried) {
+      if (other->test.significant) {
+        EXPECT_GE(s->test.drop, other->test.drop) << "the largest passing drop";
+      }
+    }
+  }
+  // Each calibration is its own jobs; the effect-only searches start apart.
+  const ResultStore store(result.store);
+  std::vector<std::vector<double>> effect_starts;
+  for (const JobInfo& job : store.Jobs()) {
+    const std::string suffix = "-effect";
+    if (job.name.size() > suffix.size() && job.name.ends_with(suffix)) {
+      effect_starts.push_back(job.spec.at("optimizer").at("settings").at("x0").get<std::vector<double>>());
+    }
+  }
+  ASSERT_EQ(effect_starts.size(), 2u);
+  EXPECT_NE(effect_starts[0], effect_starts[1]);
+  const LoopReport read = ReadLoopReportJson(result.report_json);
+  int restarts_read = 0;
+  for (const ReportStage& s : read.stages) restarts_read += s.restart;
+  EXPECT_EQ(restarts_read, 1) << "the restart index round-trips through report.json";
+
+  options.effect_restarts = 1;
+  options.out_dir = testing::ScratchDir("loop_effect_restarts_1");
+  const LoopResult one = RunLoop(options);
+  ASSERT_GE(one.report.stages.size(), 2u);
+  EXPECT_EQ(one.report.stages[1].parameters, tried[0]->parameters);
+  EXPECT_EQ(one.report.stages[1].test.hypotheses, 1);
+}
+
 // A loop resumed in its folder continues the calibration jobs of its store
 // (scripts/kill-soak.py --loop kills one part way, again and again): here
 // every job had finished, so the resumed loop reads them back, simulates no
@@ -390,6 +454,9 @@ TEST(Loop, BadOptionsAreNamed) {
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
   o.restarts = 0;
   EXPECT_NE(message(o).find("--restarts = 0"), std::string::npos);
+  o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
+  o.effect_restarts = 0;
+  EXPECT_NE(message(o).find("--effect-restarts = 0"), std::string::npos);
   o = testing::TestLoopOptions({ExamplesDir() / "push_centre"}, {}, "loop_bad");
   o.false_discovery_rate = 0.0;
   EXPECT_NE(message(o).find("--fdr = 0"), std::string::npos);

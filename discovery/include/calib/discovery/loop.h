@@ -112,6 +112,17 @@ struct LoopOptions {
   /// its equally good fits. A flat or two-basin training error lands one
   /// search in the worse basin as often as not (docs/loop.md).
   int restarts = 3;
+  /// Calibrations of each hypothesis tried (an effect added to the current
+  /// model), each from its own seed, the first as a single calibration is,
+  /// the others with the new effect's search started at seeded points of its
+  /// box (RestartStart). Each calibration is a hypothesis of its own for the
+  /// keep rule: its paired test counts in the Benjamini-Hochberg correction,
+  /// and the round keeps the largest passing drop, as among effects. An
+  /// effect's warm-started search lands in one of its basins by chance
+  /// (docs/loop.md, "Restarts of the effect stages"); more calibrations find
+  /// the one that holds on another recording more often, at a stricter
+  /// correction and their cost.
+  int effect_restarts = 1;
   /// A held-out recording of the object the first training recording
   /// shows (held in the same clamps, its own rest shape of the same area,
   /// its frame-0 outline reached by the training mesh on registration:

@@ -111,6 +111,9 @@ struct ReportStage {
   /// independent searches: the best training XOR sum each reached, in
   /// order (the first from the box's centre). Empty for warm-started stages.
   std::vector<double> restart_training_xor;
+  /// Which calibration of its hypothesis a tried stage is, from 0 (one per
+  /// `--effect-restarts`; written only when > 0).
+  int restart = 0;
   /// Every successful candidate of the calibration scored the same: the
   /// score does not depend on the parameters (nothing moves the mesh), so
   /// the stage is no fit of them (FitDiagnostics).

@@ -7,7 +7,8 @@
 //   holdout           a list of recording folders (decide, never fitted)
 //   seed, budget, effect_budget, optimizer, max_effects, tries,
 //   min_confidence, fdr, min_drop, held_out_stretch, equally_good_fits,
-//   refit_candidates, restarts, overlays, contact_friction, integrator
+//   refit_candidates, restarts, effect_restarts, overlays, contact_friction,
+//   integrator
 //                     as the options of the same name, with their ranges
 //   outline_contact   true (--outline-contact, the default) or false
 //                     (--node-contact)
