@@ -30,7 +30,7 @@ fi
 # sanitizer in every other loop test
 # (Loop.TheSimulationReachesTheStoredJobsAndTheReport,
 # GoldenTest.LoopOnPushCentreAtATinyBudget, LoopBenchmarkCli, ...).
-long_tests='*LoopOnSyntheticEffect*:Loop.AddsNothing*:Loop.EquallyGoodFitsMeasure*:Loop.RestartsKeep*:Loop.SameSeed*:ExternalPairs.*:FamilyBenchmark.*'
+long_tests='*LoopOnSyntheticEffect*:Loop.AddsNothing*:Loop.EquallyGoodFitsMeasure*:Loop.RestartsKeep*:Loop.EffectRestarts*:Loop.SameSeed*:ExternalPairs.*:FamilyBenchmark.*'
 # CI leaves out, besides, the tests that run whole loops or a loop benchmark
 # through the command line (minutes each instrumented) but one,
 # Loop.TheSimulationReachesTheStoredJobsAndTheReport, which runs the loop's
