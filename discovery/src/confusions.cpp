@@ -3,8 +3,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <cmath>
 #include <array>
+#include <limits>
 
 namespace calib {
 namespace {
@@ -43,7 +43,7 @@ const Hypothesis* Find(const std::vector<Hypothesis>& ranked, const std::string&
 const ReportStage* Tried(const std::vector<const ReportStage*>& tried, const std::string& effect) {
   const ReportStage* best = nullptr;
   const auto rank = [](const ReportStage* s) {
-    return std::make_pair(s->test.frames > 0 && s->test.significant, s->test.frames > 0 ? s->test.drop : -HUGE_VAL);
+    return std::make_pair(s->test.frames > 0 && s->test.significant, s->test.frames > 0 ? s->test.drop : -std::numeric_limits<double>::infinity());
   };
   for (const ReportStage* s : tried) {
     if (s->effect_tried == effect && (best == nullptr || rank(best) < rank(s))) best = s;

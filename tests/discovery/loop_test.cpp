@@ -308,9 +308,8 @@ TEST(Loop, EffectRestartsAreHypothesesOfTheirOwn) {
   EXPECT_EQ(tried[0]->restart, 0);
   EXPECT_EQ(tried[1]->restart, 1);
   for (const ReportStage* s : tried) {
-    if (s->test.frames > 0) {
-      EXPECT_EQ(s->test.hypotheses, 2) << "both calibrations count in the correction";
-    }
+    ASSERT_GT(s->test.frames, 0) << "each calibration is tested on the held-out push";
+    EXPECT_EQ(s->test.hypotheses, 2) << "both calibrations count in the correction";
   }
   EXPECT_NE(tried[0]->parameters, tried[1]->parameters);
   EXPECT_LE(std::count_if(tried.begin(), tried.end(),
