@@ -65,6 +65,10 @@ struct Fit {
   /// left on a bound of the stage's box.
   bool uninformative = false;
   std::vector<std::string> at_bounds;
+  /// The boxes the calibration searched at the end, where it widened
+  /// some (WidenPinnedBoxes; a stage that continues this fit searches
+  /// boxes at least as wide); empty otherwise.
+  std::vector<ParameterSetting> widened_settings;
   EquallyGoodFits equally_good;  ///< MeasureEquallyGood; fits == 0 until then
   /// MeasureSensitivity: the largest move of the held-out XOR sum when one
   /// value moves by 0.1 % (px; 0 until measured), and that value's name.
@@ -84,6 +88,20 @@ struct Fit {
   std::vector<std::vector<double>> HeldOutFrameErrors(const std::vector<LoopRecording>& recs) const;
   bool AllOk() const;
 };
+
+/// Widens by `factor` (> 1) each bound of a searched log-scaled box in
+/// `settings` that `values` lies on (within FitDiagnostics::kBoundShare of
+/// the box on its scale), within the parameter's range in `specs`: such a
+/// box is a guess from the recordings' scales (a stiffness, a damping), and
+/// a fit pinned to it may have its optimum outside. Returns one line per
+/// bound widened ("k_d: upper 10000 -> 316228"); empty when none was.
+std::vector<std::string> WidenPinnedBoxes(std::vector<ParameterSetting>& settings,
+                                          const ParameterValues& values,
+                                          const std::vector<ParameterSpec>& specs, double factor);
+
+/// Widens each searched box of `settings` to hold the box of the same name
+/// in `wider` (a previous calibration's widened boxes).
+void IncludeBoxes(std::vector<ParameterSetting>& settings, const std::vector<ParameterSetting>& wider);
 
 /// "base+viscoelastic" for logs and reports.
 std::string StageName(const std::vector<std::string>& effects);
@@ -191,7 +209,7 @@ class StageCalibrator {
   // (SearchScales::swing_stiffness): horizons lengthening from two swing
   // periods to the whole recordings. Returns the fit's values.
   ParameterValues CalibrateSwing(int index, const std::vector<std::string>& effects,
-                                 const std::vector<ParameterSetting>& settings, int64_t budget,
+                                 std::vector<ParameterSetting>* settings, int64_t budget,
                                  uint64_t seed, Fit* fit);
   double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const;
   std::vector<int> HeldOutIndices() const;

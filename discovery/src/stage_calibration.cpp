@@ -232,6 +232,45 @@ std::string StageName(const std::vector<std::string>& effects) {
   return ModelDefinition{effects}.ToString();
 }
 
+std::vector<std::string> WidenPinnedBoxes(std::vector<ParameterSetting>& settings,
+                                          const ParameterValues& values,
+                                          const std::vector<ParameterSpec>& specs, double factor) {
+  if (!(factor > 1.0)) throw std::invalid_argument(fmt::format("WidenPinnedBoxes: factor {} <= 1", factor));
+  std::vector<std::string> widened;
+  for (ParameterSetting& s : settings) {
+    if (!s.searched() || s.scale != ParameterScale::kLog) continue;
+    const auto value = values.find(s.name);
+    const auto spec = std::find_if(specs.begin(), specs.end(),
+                                   [&](const ParameterSpec& p) { return p.name == s.name; });
+    if (value == values.end() || spec == specs.end() || !(value->second > 0.0)) continue;
+    // Where the value lies in the box on its (log) scale, 0 at the lower
+    // bound: on a bound as FitDiagnostics says.
+    const double unit = std::log(value->second / s.lower) / std::log(s.upper / s.lower);
+    if (unit >= 1.0 - FitDiagnostics::kBoundShare && s.upper < spec->upper) {
+      const double upper = std::min(spec->upper, s.upper * factor);
+      widened.push_back(fmt::format("{}: upper {:g} -> {:g}", s.name, s.upper, upper));
+      s.upper = upper;
+    } else if (unit <= FitDiagnostics::kBoundShare && s.lower > spec->lower) {
+      const double lower = std::max(spec->lower, s.lower / factor);
+      if (!(lower > 0.0)) continue;  // a log box stays positive
+      widened.push_back(fmt::format("{}: lower {:g} -> {:g}", s.name, s.lower, lower));
+      s.lower = lower;
+    }
+  }
+  return widened;
+}
+
+void IncludeBoxes(std::vector<ParameterSetting>& settings, const std::vector<ParameterSetting>& wider) {
+  for (ParameterSetting& s : settings) {
+    if (!s.searched()) continue;
+    for (const ParameterSetting& w : wider) {
+      if (w.name != s.name || !w.searched() || w.scale != s.scale) continue;
+      s.lower = std::min(s.lower, w.lower);
+      s.upper = std::max(s.upper, w.upper);
+    }
+  }
+}
+
 // The store's job for `spec`: the one of its name when the loop resumes
 // (it must have been made with the same request, recordings and model; the
 // thread count may differ, since it changes no result), else a new one.
@@ -322,7 +361,7 @@ double StageCalibrator::TrainingScore(const std::vector<std::string>& effects, c
 }
 
 ParameterValues StageCalibrator::CalibrateSwing(int index, const std::vector<std::string>& effects,
-                                                const std::vector<ParameterSetting>& settings,
+                                                std::vector<ParameterSetting>* settings,
                                                 int64_t budget, uint64_t seed, Fit* fit) {
   // A swing a few per cent off the video's period is out of phase within a
   // few of its cycles, and a still mesh on the mean pose then scores better
@@ -359,13 +398,13 @@ ParameterValues StageCalibrator::CalibrateSwing(int index, const std::vector<std
   };
 
   // The first horizon: independent searches, as a cold calibration.
-  const int dimension = SearchSpace(settings).dimension();
+  const int dimension = SearchSpace(*settings).dimension();
   ParameterValues best_values;
   double best = std::numeric_limits<double>::infinity();
   for (int r = 0; r < o_.restarts; ++r) {
     const std::vector<double> x0 = RestartStart(dimension, seed, r);
     const std::string name = horizon_name(horizons.front()) + (r == 0 ? "" : fmt::format("-restart{}", r));
-    const auto [values, score] = RunJob(name, effects, settings, r == 0 ? nullptr : &x0, 0.3, first_budget,
+    const auto [values, score] = RunJob(name, effects, *settings, r == 0 ? nullptr : &x0, 0.3, first_budget,
                                         seed + 100000 * static_cast<uint64_t>(r), fit, horizons.front());
     fit->restart_training_xor.push_back(score);
     if (score < best) {
@@ -386,24 +425,52 @@ ParameterValues StageCalibrator::CalibrateSwing(int index, const std::vector<std
   double whole_score = std::numeric_limits<double>::infinity();
   ParameterValues before_whole = best_values;
   for (size_t k = 1; k < horizons.size(); ++k) {
-    std::vector<double> x0 = SearchSpace(settings).ToUnit(best_values);
+    std::vector<double> x0 = SearchSpace(*settings).ToUnit(best_values);
     for (double& u : x0) u = std::clamp(u, 0.0, 1.0);
     if (k + 1 == horizons.size()) before_whole = best_values;
-    const auto [values, score] = RunJob(horizon_name(horizons[k]), effects, settings, &x0, kHorizonSigma,
+    const auto [values, score] = RunJob(horizon_name(horizons[k]), effects, *settings, &x0, kHorizonSigma,
                                         later_budget, seed + 500 + k, fit, horizons[k]);
     if (!std::isfinite(score)) continue;  // nothing simulated: keep the previous best
     best_values = values;
     if (k + 1 == horizons.size()) whole_score = score;
   }
+  double best_whole = best;  // one horizon: the first is the whole recordings
   if (horizons.size() > 1) {
     const double before = TrainingScore(effects, before_whole);
     ++fit->evaluations;
     if (before < whole_score) best_values = before_whole;
-    if (!std::isfinite(std::min(before, whole_score))) {
+    best_whole = std::min(before, whole_score);
+    if (!std::isfinite(best_whole)) {
       throw std::runtime_error(fmt::format(
           "loop: calibrating {}: no fit on the first frames simulates the whole training recordings",
           StageName(effects)));
     }
+  }
+  // A fit on a bound of a log-scaled box: the box (a stiffness's or a
+  // damping's, set from the recordings' scales before anything was fitted)
+  // may end short of the optimum. The edge damping of concave_1's swing
+  // ended on the first-order box's top (1e4). The box is widened there by
+  // kBoxWidening and searched again over the whole recordings from the fit,
+  // at most kMaxBoxWidenings times, while that improves the training score.
+  constexpr double kBoxWidening = 31.6227766016838;  // 10^1.5, the swing box's reach
+  constexpr int kMaxBoxWidenings = 2;
+  const std::vector<ParameterSpec> specs = ModelParameterSpecs(ModelDefinition{effects});
+  for (int w = 1; w <= kMaxBoxWidenings; ++w) {
+    const std::vector<std::string> widened = WidenPinnedBoxes(*settings, best_values, specs, kBoxWidening);
+    if (widened.empty()) break;
+    std::string list;
+    for (const std::string& line : widened) list += (list.empty() ? "" : ", ") + line;
+    Log(fmt::format("loop: {} ended on its search box's bound; widened ({}) and searched again",
+                    StageName(effects), list));
+    fit->widened_settings = *settings;
+    std::vector<double> x0 = SearchSpace(*settings).ToUnit(best_values);
+    for (double& u : x0) u = std::clamp(u, 0.0, 1.0);
+    const auto [values, score] =
+        RunJob(fmt::format("{}-widened{}", base_name, w), effects, *settings, &x0, kHorizonSigma,
+               std::max<int64_t>(kMinJob, budget), seed + 900 + static_cast<uint64_t>(w), fit, 0);
+    if (!(score < best_whole)) break;
+    best_values = values;
+    best_whole = score;
   }
   return best_values;
 }
@@ -423,7 +490,10 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
   if (warm != nullptr && StartsCold(effects, *warm)) warm = nullptr;
   SearchScales scales = scales_;
   if (warm != nullptr) scales.reference = warm->values;
-  const std::vector<ParameterSetting> settings = StageParameterSettings(effects, scales);
+  std::vector<ParameterSetting> settings = StageParameterSettings(effects, scales);
+  // A box the previous calibration widened stays as wide: its fit may lie
+  // outside this stage's own box.
+  if (warm != nullptr) IncludeBoxes(settings, warm->widened_settings);
   const int64_t budget = (effects.empty() || o_.effect_budget == 0) ? o_.budget : o_.effect_budget;
   // A hypothesis's first calibration has the seed a loop without
   // effect restarts gives it; the others seeds of their own.
@@ -431,9 +501,10 @@ Fit StageCalibrator::Calibrate(int index, const std::vector<std::string>& effect
   Fit fit;
   fit.effects = effects;
   fit.restart = restart;
+  if (warm != nullptr && !warm->widened_settings.empty()) fit.widened_settings = settings;
   const bool swing = warm == nullptr && scales_.swing_stiffness > 0.0 && HasInertia(effects);
   if (swing) {
-    fit.values = CalibrateSwing(index, effects, settings, budget, seed, &fit);
+    fit.values = CalibrateSwing(index, effects, &settings, budget, seed, &fit);
   } else if (warm == nullptr) {
     // Independent searches; the best on the training recordings is the fit
     // (the first on ties, so one restart is the plain search).
