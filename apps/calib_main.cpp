@@ -48,6 +48,11 @@ void AddModelOptions(CLI::App* cmd, CommandSettings* settings, std::string* inte
   cmd->add_option("--edge", settings->preparation.mesher.edge_length_px,
                   "target mesh edge length, pixels")
       ->capture_default_str();
+  cmd->add_option("--min-edges-across", settings->preparation.mesher.min_edges_across,
+                  "mesh an object narrower than this many edges finer (job spec "
+                  "model.mesh.min_edges_across; 0: --edge whatever the width)")
+      ->check(CLI::Range(0, calib::MesherOptions::kMaxEdgesAcross))
+      ->capture_default_str();
   cmd->add_option("--substeps", settings->simulation.substeps, "integration substeps per frame")
       ->capture_default_str();
   cmd->add_option("--integrator", *integrator,

@@ -40,6 +40,7 @@ struct LoopRunFlags {
   int effect_restarts = kDefaults.effect_restarts;
   bool own_meshes = !kDefaults.carry_object_model;
   double edge_length_px = kDefaults.preparation.mesher.edge_length_px;
+  int min_edges_across = kDefaults.preparation.mesher.min_edges_across;
   std::string cache_dir;
   bool no_cache = false;
   bool outline_contact = kDefaults.simulation.outline_contact;
@@ -165,6 +166,11 @@ void AddLoopRunOptions(CLI::App* cmd, LoopRunFlags* f) {
   cmd->add_option("--edge", f->edge_length_px, "target mesh edge length, pixels")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_option("--min-edges-across", f->min_edges_across,
+                  "mesh an object narrower than this many edges finer: edges at most its mean "
+                  "width (2 area / perimeter) over this (0: --edge whatever the width)")
+      ->check(CLI::Range(0, MesherOptions::kMaxEdgesAcross))
+      ->capture_default_str();
   cmd->add_option("--cache-dir", f->cache_dir, "segmentation cache folder");
   cmd->add_flag("--no-cache", f->no_cache, "do not read or write the segmentation cache");
   cmd->add_flag("--no-html", f->no_html, "write the reports' JSON only (no report.html)");
@@ -192,6 +198,7 @@ LoopOptions ToLoopOptions(const LoopRunFlags& f, int argc, char** argv) {
   options.effect_restarts = f.effect_restarts;
   options.carry_object_model = !f.own_meshes;
   options.preparation.mesher.edge_length_px = f.edge_length_px;
+  options.preparation.mesher.min_edges_across = f.min_edges_across;
   options.write_html = !f.no_html;
   options.simulation.outline_contact = f.outline_contact;
   options.simulation.contact_friction = f.contact_friction;

@@ -362,6 +362,13 @@ bool MesherOptions::IsValid(std::string* error) const {
     }
     return false;
   }
+  if (min_edges_across < 0 || min_edges_across > kMaxEdgesAcross) {
+    if (error != nullptr) {
+      *error = fmt::format("MesherOptions::min_edges_across = {}. Violated: 0 <= min_edges_across <= {}.",
+                           min_edges_across, kMaxEdgesAcross);
+    }
+    return false;
+  }
   for (size_t i = 0; i < held_regions.size(); ++i) {
     const RectPx& r = held_regions[i];
     const bool finite = std::isfinite(r.x) && std::isfinite(r.y) && std::isfinite(r.width) &&
@@ -379,10 +386,33 @@ bool MesherOptions::IsValid(std::string* error) const {
   return true;
 }
 
+double MeshEdgeLength(const std::vector<Vec2>& polygon, const MesherOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument("MeshEdgeLength: " + error);
+  if (polygon.size() < 3) {
+    throw std::invalid_argument(
+        fmt::format("MeshEdgeLength: polygon of {} vertices (at least 3)", polygon.size()));
+  }
+  if (options.min_edges_across == 0) return options.edge_length_px;
+  double perimeter = 0.0;
+  for (size_t i = 0; i < polygon.size(); ++i) {
+    perimeter += (polygon[(i + 1) % polygon.size()] - polygon[i]).norm();
+  }
+  const double width = perimeter > 0.0 ? 2.0 * std::abs(PolygonArea(polygon)) / perimeter : 0.0;
+  const double across = width / options.min_edges_across;
+  return across > 0.0 ? std::min(options.edge_length_px, across) : options.edge_length_px;
+}
+
 Mesh MeshPolygon(const std::vector<Vec2>& polygon, const MesherOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("MeshPolygon: " + error);
   CheckPolygon(polygon, options);
+  if (options.min_edges_across > 0) {
+    MesherOptions fine = options;
+    fine.edge_length_px = MeshEdgeLength(polygon, options);
+    fine.min_edges_across = 0;
+    return MeshPolygon(polygon, fine);
+  }
   const double edge = options.edge_length_px;
 
   // The mesh's boundary is the resampled outline, with a node wherever a held

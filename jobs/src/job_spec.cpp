@@ -169,6 +169,9 @@ nlohmann::json ToJson(const JobSpec& spec) {
   };
   // Written only when on: a job stored before the key existed (off) keeps
   // the same spec and resumes.
+  if (m.preparation.mesher.min_edges_across > 0) {
+    out["model"]["mesh"]["min_edges_across"] = m.preparation.mesher.min_edges_across;
+  }
   if (m.simulation.outline_contact) out["model"]["outline_contact"] = true;
   if (m.simulation.area_weighted) out["model"]["area_weighted"] = true;
   if (m.preparation.max_frames != 0) out["model"]["frames"] = m.preparation.max_frames;

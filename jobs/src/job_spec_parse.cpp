@@ -172,6 +172,12 @@ void ReadModel(MapReader r, ModelSpec* m, const ModelCatalog& catalog) {
     if (!(prep.mesher.edge_length_px > 0.0)) {
       s.Fail(s.KeyPath("edge_length_px"), s.node()["edge_length_px"], "must be > 0");
     }
+    s.Read("min_edges_across", &prep.mesher.min_edges_across);
+    if (prep.mesher.min_edges_across < 0 || prep.mesher.min_edges_across > MesherOptions::kMaxEdgesAcross) {
+      s.Fail(s.KeyPath("min_edges_across"), s.node()["min_edges_across"],
+             fmt::format("must be in [0, {}] (0: edge_length_px whatever the width)",
+                         MesherOptions::kMaxEdgesAcross));
+    }
     s.Finish();
   }
   r.Read("outline_tolerance_px", &prep.outline_tolerance_px);

@@ -161,6 +161,48 @@ TEST(MeshPolygon, EdgeLengthFollowsTheOption) {
   }
 }
 
+// A strip narrower than min_edges_across edges is meshed with edges of its
+// mean width (2 area / perimeter) over min_edges_across; a wide object, or
+// the option off, keeps edge_length_px bit for bit.
+TEST(MeshPolygon, ANarrowStripGetsMinEdgesAcross) {
+  const auto strip = Rectangle(300, 24);  // mean width 2 * 7200 / 648 = 22.2 px
+  MesherOptions options;
+  options.edge_length_px = 20.0;
+  EXPECT_DOUBLE_EQ(MeshEdgeLength(strip, options), 20.0);
+  options.min_edges_across = 2;
+  const double width = 2.0 * 300.0 * 24.0 / (2.0 * (300.0 + 24.0));
+  EXPECT_NEAR(MeshEdgeLength(strip, options), width / 2.0, 1e-12);
+  options.min_edges_across = 3;
+  EXPECT_NEAR(MeshEdgeLength(strip, options), width / 3.0, 1e-12);
+
+  // Across the strip's 24 px: one row of triangles at 20 px; at
+  // least two rows (an interior line of nodes or boundary nodes off the
+  // long sides' ends) with two edges across.
+  auto rows_across = [&](const Mesh& mesh) {
+    std::vector<double> ys;
+    for (const Vec2& p : mesh.rest_positions) {
+      if (std::abs(p.x() - 150.0) < 40.0) ys.push_back(std::round(p.y() * 10.0) / 10.0);
+    }
+    std::sort(ys.begin(), ys.end());
+    return static_cast<int>(std::unique(ys.begin(), ys.end()) - ys.begin());
+  };
+  MesherOptions coarse;
+  const Mesh coarse_mesh = MeshPolygon(strip, coarse);
+  options.min_edges_across = 2;
+  const Mesh fine_mesh = MeshPolygon(strip, options);
+  ExpectValidMeshOf(fine_mesh, strip, width / 2.0);
+  EXPECT_EQ(rows_across(coarse_mesh), 2);  // the two long sides
+  EXPECT_GE(rows_across(fine_mesh), 3);
+  EXPECT_GT(fine_mesh.NumNodes(), 2 * coarse_mesh.NumNodes());
+
+  // A sponge far wider than two edges: the same mesh as without the option.
+  const auto sponge = Rectangle(400, 256);
+  const Mesh plain = MeshPolygon(sponge, coarse);
+  const Mesh ruled = MeshPolygon(sponge, options);
+  EXPECT_EQ(ruled.rest_positions, plain.rest_positions);
+  EXPECT_EQ(ruled.triangles, plain.triangles);
+}
+
 TEST(MeshPolygon, ScaleInvariant) {
   // Scaling the polygon and the edge length together scales the nodes. The
   // connectivity may differ where four nodes are co-circular (a boundary node
@@ -220,6 +262,17 @@ TEST(MesherOptions, IsValidNamesFieldValueAndRule) {
     EXPECT_NE(error.find("> 0"), std::string::npos) << error;
     EXPECT_FALSE(options.IsValid(nullptr));
     ExpectThrowsMentioning(Rectangle(400, 256), options, "edge_length_px");
+  }
+}
+
+TEST(MesherOptions, MinEdgesAcrossOutOfRangeIsNamed) {
+  for (int bad : {-1, MesherOptions::kMaxEdgesAcross + 1}) {
+    MesherOptions options;
+    options.min_edges_across = bad;
+    std::string error;
+    EXPECT_FALSE(options.IsValid(&error)) << bad;
+    EXPECT_NE(error.find("min_edges_across = " + std::to_string(bad)), std::string::npos) << error;
+    ExpectThrowsMentioning(Rectangle(400, 256), options, "min_edges_across");
   }
 }
 

@@ -158,6 +158,26 @@ TEST(JobSpec, AreaWeightingNeedsInertiaAndRoundTrips) {
       "area_weighted"));
 }
 
+TEST(JobSpec, MinEdgesAcrossRoundTripsAndABadValueIsNamed) {
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["mesh"]["min_edges_across"] = 17; }),
+                  "model.mesh.min_edges_across = '17': must be in [0, 16]");
+  EXPECT_CONTAINS(ErrorOf([](YAML::Node& r) { r["model"]["mesh"]["min_edges_across"] = -1; }),
+                  "model.mesh.min_edges_across = '-1'");
+  const fs::path dir = MakeJobFolder("job_spec_min_edges_across");
+  YAML::Node root = YAML::Load(kValidSpec);
+  root["model"]["mesh"]["min_edges_across"] = 2;
+  YAML::Emitter out;
+  out << root;
+  const JobSpec spec = ParseJobSpec(std::string(out.c_str()), "job.yaml", dir);
+  EXPECT_EQ(spec.model.preparation.mesher.min_edges_across, 2);
+  const nlohmann::json canonical = ToJson(spec);
+  EXPECT_EQ(canonical["model"]["mesh"]["min_edges_across"], 2);
+  EXPECT_EQ(ParseJobSpec(canonical, "stored spec", dir).model.preparation.mesher.min_edges_across, 2);
+  // Off is the default and left out, as for a job stored before the key.
+  EXPECT_FALSE(ToJson(ParseJobSpec(std::string(kValidSpec), "job.yaml", dir))["model"]["mesh"].contains(
+      "min_edges_across"));
+}
+
 TEST(JobSpec, DefaultsAreFilledIn) {
   const fs::path dir = MakeJobFolder("job_spec_defaults");
   const JobSpec spec = ParseJobSpec(std::string(R"yaml(

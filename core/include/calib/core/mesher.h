@@ -13,6 +13,15 @@ struct MesherOptions {
   /// (about) of the nodes along the boundary. Pixels, finite, > 0.
   double edge_length_px = 20.0;
 
+  /// When > 0, a polygon narrower than min_edges_across edges of
+  /// edge_length_px is meshed finer: the edge length is at most its mean
+  /// width (2 area / perimeter: a strip's width, a disc's radius) over
+  /// min_edges_across (MeshEdgeLength), so that a narrow strip has enough
+  /// elements across to bend. 0: edge_length_px, whatever the width. At
+  /// most kMaxEdgesAcross.
+  int min_edges_across = 0;
+  static constexpr int kMaxEdgesAcross = 16;
+
   /// Rectangles (the recording's clamps) whose sides become lines of the
   /// mesh where they cross the object: each side's stretch inside the polygon
   /// is split into round(length / edge_length_px) (at least 1) pieces whose
@@ -26,6 +35,11 @@ struct MesherOptions {
   /// option is out of range; `error` may be null.
   bool IsValid(std::string* error) const;
 };
+
+/// The edge length MeshPolygon meshes `polygon` with: options.edge_length_px,
+/// or less where options.min_edges_across asks for it. Throws
+/// std::invalid_argument for invalid options or fewer than 3 vertices.
+double MeshEdgeLength(const std::vector<Vec2>& polygon, const MesherOptions& options);
 
 /// Meshes the simple polygon `polygon` (#P >= 3 vertices, pixels, either
 /// orientation, not closed by repeating the first vertex).
