@@ -677,8 +677,9 @@ void StageCalibrator::RefitWhereHeldOutFails(Fit* fit, const Fit* reference) con
   if (failed < 0) return;
   const EvaluationResult& failure = fit->results[static_cast<size_t>(failed)];
   const std::string what = fmt::format("the calibration's best fit on training failed to simulate {} "
-                                       "(held out) from frame {}",
-                                       recs_[static_cast<size_t>(failed)].name, failure.failure_frame);
+                                       "(held out) from frame {} ({})",
+                                       recs_[static_cast<size_t>(failed)].name, failure.failure_frame,
+                                       failure.failure_reason);
   std::vector<EvaluationRecord> evaluations;
   for (int64_t job : fit->whole_recording_jobs) {
     for (EvaluationRecord& e : store_.Evaluations(job)) evaluations.push_back(std::move(e));
