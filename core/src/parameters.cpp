@@ -27,8 +27,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // size it kept nothing (0.94 held out in this box). A decade and a half had
 // been too narrow only while the second-order step was unstable at the
 // swing stiffness (Simulator::kStabilityMargin): fits then had to stay
-// 30 times below it.
-constexpr double kSwingStiffnessReach = 31.6227766016838;  // 10^1.5
+// 30 times below it. (kSwingStiffnessReach, parameters.h.)
 
 SearchBox SwingBox(double swing_stiffness) {
   return SearchBox::Log(swing_stiffness / kSwingStiffnessReach, swing_stiffness * kSwingStiffnessReach);

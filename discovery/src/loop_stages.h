@@ -90,11 +90,13 @@ struct Fit {
 };
 
 /// Widens by `factor` (> 1) each bound of a searched log-scaled box in
-/// `settings` that `values` lies on (within FitDiagnostics::kBoundShare of
-/// the box on its scale), within the parameter's range in `specs`: such a
+/// `settings` that `values` lies on (ValuesOnBounds, as DiagnoseFit
+/// reports it), within the parameter's range in `specs`: such a
 /// box is a guess from the recordings' scales (a stiffness, a damping), and
-/// a fit pinned to it may have its optimum outside. Returns one line per
-/// bound widened ("k_d: upper 10000 -> 316228"); empty when none was.
+/// a fit pinned to it may have its optimum outside. `values` holds every
+/// searched name (SearchSpace::ToUnit's std::invalid_argument otherwise).
+/// Returns one line per bound widened ("k_d: upper 10000 -> 316228");
+/// empty when none was.
 std::vector<std::string> WidenPinnedBoxes(std::vector<ParameterSetting>& settings,
                                           const ParameterValues& values,
                                           const std::vector<ParameterSpec>& specs, double factor);

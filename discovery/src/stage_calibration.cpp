@@ -237,20 +237,18 @@ std::vector<std::string> WidenPinnedBoxes(std::vector<ParameterSetting>& setting
                                           const std::vector<ParameterSpec>& specs, double factor) {
   if (!(factor > 1.0)) throw std::invalid_argument(fmt::format("WidenPinnedBoxes: factor {} <= 1", factor));
   std::vector<std::string> widened;
-  for (ParameterSetting& s : settings) {
-    if (!s.searched() || s.scale != ParameterScale::kLog) continue;
-    const auto value = values.find(s.name);
+  for (const BoundHit& hit : ValuesOnBounds(settings, values)) {
+    const auto s_it = std::find_if(settings.begin(), settings.end(),
+                                   [&](const ParameterSetting& p) { return p.name == hit.name; });
     const auto spec = std::find_if(specs.begin(), specs.end(),
-                                   [&](const ParameterSpec& p) { return p.name == s.name; });
-    if (value == values.end() || spec == specs.end() || !(value->second > 0.0)) continue;
-    // Where the value lies in the box on its (log) scale, 0 at the lower
-    // bound: on a bound as FitDiagnostics says.
-    const double unit = std::log(value->second / s.lower) / std::log(s.upper / s.lower);
-    if (unit >= 1.0 - FitDiagnostics::kBoundShare && s.upper < spec->upper) {
+                                   [&](const ParameterSpec& p) { return p.name == hit.name; });
+    if (s_it == settings.end() || s_it->scale != ParameterScale::kLog || spec == specs.end()) continue;
+    ParameterSetting& s = *s_it;
+    if (hit.upper && s.upper < spec->upper) {
       const double upper = std::min(spec->upper, s.upper * factor);
       widened.push_back(fmt::format("{}: upper {:g} -> {:g}", s.name, s.upper, upper));
       s.upper = upper;
-    } else if (unit <= FitDiagnostics::kBoundShare && s.lower > spec->lower) {
+    } else if (!hit.upper && s.lower > spec->lower) {
       const double lower = std::max(spec->lower, s.lower / factor);
       if (!(lower > 0.0)) continue;  // a log box stays positive
       widened.push_back(fmt::format("{}: lower {:g} -> {:g}", s.name, s.lower, lower));
@@ -452,7 +450,7 @@ ParameterValues StageCalibrator::CalibrateSwing(int index, const std::vector<std
   // ended on the first-order box's top (1e4). The box is widened there by
   // kBoxWidening and searched again over the whole recordings from the fit,
   // at most kMaxBoxWidenings times, while that improves the training score.
-  constexpr double kBoxWidening = 31.6227766016838;  // 10^1.5, the swing box's reach
+  constexpr double kBoxWidening = kSwingStiffnessReach;
   constexpr int kMaxBoxWidenings = 2;
   const std::vector<ParameterSpec> specs = ModelParameterSpecs(ModelDefinition{effects});
   for (int w = 1; w <= kMaxBoxWidenings; ++w) {

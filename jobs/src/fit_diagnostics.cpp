@@ -37,24 +37,33 @@ std::string FitDiagnostics::Summary() const {
   return out;
 }
 
+std::vector<BoundHit> ValuesOnBounds(const std::vector<ParameterSetting>& settings,
+                                     const ParameterValues& values) {
+  std::vector<BoundHit> hits;
+  const SearchSpace space(settings);
+  const std::vector<std::string> names = space.names();
+  const std::vector<double> unit = space.ToUnit(values);
+  for (size_t k = 0; k < names.size(); ++k) {
+    const auto setting = std::find_if(settings.begin(), settings.end(),
+                                      [&](const ParameterSetting& s) { return s.name == names[k]; });
+    if (setting != settings.end() && IsWholeTurn(*setting)) continue;
+    if (unit[k] <= FitDiagnostics::kBoundShare) {
+      hits.push_back({names[k], false});
+    } else if (unit[k] >= 1.0 - FitDiagnostics::kBoundShare) {
+      hits.push_back({names[k], true});
+    }
+  }
+  return hits;
+}
+
 FitDiagnostics DiagnoseFit(const std::vector<ParameterSetting>& settings,
                            const ParameterValues& best,
                            std::span<const EvaluationRecord> evaluations) {
   FitDiagnostics d;
   if (!best.empty()) {
-    const SearchSpace space(settings);
-    const std::vector<std::string> names = space.names();
-    const std::vector<double> unit = space.ToUnit(best);
-    for (size_t k = 0; k < names.size(); ++k) {
-      const auto setting = std::find_if(settings.begin(), settings.end(),
-                                        [&](const ParameterSetting& s) { return s.name == names[k]; });
-      if (setting != settings.end() && IsWholeTurn(*setting)) continue;
-      const double value = best.at(names[k]);
-      if (unit[k] <= FitDiagnostics::kBoundShare) {
-        d.at_bounds.push_back(fmt::format("{} = {:g} (lower bound)", names[k], value));
-      } else if (unit[k] >= 1.0 - FitDiagnostics::kBoundShare) {
-        d.at_bounds.push_back(fmt::format("{} = {:g} (upper bound)", names[k], value));
-      }
+    for (const BoundHit& hit : ValuesOnBounds(settings, best)) {
+      d.at_bounds.push_back(fmt::format("{} = {:g} ({} bound)", hit.name, best.at(hit.name),
+                                        hit.upper ? "upper" : "lower"));
     }
   }
   double lowest = std::numeric_limits<double>::infinity();

@@ -175,9 +175,9 @@ TEST(MeshPolygon, ANarrowStripGetsMinEdgesAcross) {
   options.min_edges_across = 3;
   EXPECT_NEAR(MeshEdgeLength(strip, options), width / 3.0, 1e-12);
 
-  // Across the strip's 24 px: one row of triangles at 20 px; at
-  // least two rows (an interior line of nodes or boundary nodes off the
-  // long sides' ends) with two edges across.
+  // Across the strip's 24 px near its middle: at 20 px only the two long
+  // sides hold nodes (one row of triangles); with two edges across there
+  // is a line of nodes between them.
   auto rows_across = [&](const Mesh& mesh) {
     std::vector<double> ys;
     for (const Vec2& p : mesh.rest_positions) {

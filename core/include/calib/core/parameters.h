@@ -34,6 +34,10 @@ ParameterScale ParameterScaleFromString(const std::string& name);
 /// fields say: the largest force and drag, the longest duration, and the
 /// frame rate and pixel scale of the first (the boxes reach far enough for
 /// the others' to fit).
+/// With inertia on a freely swinging object, the stiffness boxes reach
+/// this factor either side of SearchScales::swing_stiffness: 10^1.5.
+inline constexpr double kSwingStiffnessReach = 31.6227766016838;
+
 struct SearchScales {
   double peak_force = 0.0;  ///< largest |force| of the training tracks; 0: no sensor
   double fps = 30.0;        ///< frame rate of the first training recording

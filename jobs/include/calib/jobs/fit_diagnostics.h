@@ -34,6 +34,20 @@ struct FitDiagnostics {
   std::string Summary() const;
 };
 
+/// A searched parameter whose value lies on a bound of its box.
+struct BoundHit {
+  std::string name;
+  bool upper = false;  ///< on the upper bound (else the lower)
+};
+
+/// The searched parameters of `settings` whose value in `values` (which
+/// holds every searched name) lies on a bound of its box, within
+/// FitDiagnostics::kBoundShare of the box's width on its search scale, in
+/// the settings' search order. An angle searched over a whole turn (a name
+/// ending in _deg, a box 360 wide) has no bound.
+std::vector<BoundHit> ValuesOnBounds(const std::vector<ParameterSetting>& settings,
+                                     const ParameterValues& values);
+
 /// Diagnoses the fit `best` of a search over `settings` from its
 /// evaluations (all of them, in any order; failed ones are skipped).
 FitDiagnostics DiagnoseFit(const std::vector<ParameterSetting>& settings,
