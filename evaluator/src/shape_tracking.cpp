@@ -2,6 +2,7 @@
 
 #include "calib/evaluator/contour.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
@@ -18,6 +19,15 @@ namespace {
 // Tolerance of the outline polygon the nodes are matched to: finer than the
 // mesher's (the outline here is a target, not a mesh boundary).
 constexpr double kOutlineTolerancePx = 0.5;
+
+// A swing's cycle starts where its centre crosses the median upwards after
+// having been below it by more than half a pixel: motion under the
+// outline's own resolution is no swing.
+constexpr double kCycleHysteresisPx = 0.5;
+
+// The rest shape is fitted against the motion over at least this many
+// whole cycles (an intercept and a slope, and one more to check them).
+constexpr int kMinRestCycles = 3;
 
 struct SegmentPoint {
   double distance2 = std::numeric_limits<double>::infinity();
@@ -339,6 +349,131 @@ void EmbedLengths(const Mesh& mesh, std::span<const uint8_t> clamped,
   }
 }
 
+// The mean positions and edge lengths over `frames`.
+void MeanShape(const Mesh& mesh, std::span<const std::vector<Vec2>> frames,
+               std::vector<Vec2>& positions, std::vector<double>& lengths) {
+  std::fill(positions.begin(), positions.end(), Vec2::Zero());
+  std::fill(lengths.begin(), lengths.end(), 0.0);
+  for (const std::vector<Vec2>& x : frames) {
+    for (size_t i = 0; i < positions.size(); ++i) positions[i] += x[i];
+    for (size_t k = 0; k < lengths.size(); ++k) {
+      lengths[k] += (x[mesh.edges[k][0]] - x[mesh.edges[k][1]]).norm();
+    }
+  }
+  const double count = static_cast<double>(frames.size());
+  for (Vec2& p : positions) p /= count;
+  for (double& l : lengths) l /= count;
+}
+
+}  // namespace
+
+std::vector<MotionCycle> MotionCycles(std::span<const std::vector<Vec2>> frames,
+                                      std::span<const uint8_t> clamped) {
+  const int count = static_cast<int>(frames.size());
+  for (int f = 0; f < count; ++f) {
+    if (frames[f].size() != clamped.size()) {
+      throw std::invalid_argument(fmt::format("motion cycles: frame {} has {} nodes and {} clamp flags",
+                                              f, frames[f].size(), clamped.size()));
+    }
+  }
+  if (count < 3) return {};
+  // The free nodes' mean position per frame, and its principal direction.
+  std::vector<Vec2> centre(count, Vec2::Zero());
+  for (int f = 0; f < count; ++f) {
+    int free = 0;
+    for (size_t i = 0; i < frames[f].size(); ++i) {
+      if (clamped[i] != 0) continue;
+      centre[f] += frames[f][i];
+      ++free;
+    }
+    if (free > 0) centre[f] /= static_cast<double>(free);
+  }
+  Vec2 mean = Vec2::Zero();
+  for (const Vec2& c : centre) mean += c / static_cast<double>(count);
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+  for (const Vec2& c : centre) covariance += (c - mean) * (c - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(covariance);
+  const Vec2 axis = eigen.eigenvectors().col(1);  // the larger eigenvalue's
+  std::vector<double> along(count);
+  for (int f = 0; f < count; ++f) along[f] = (centre[f] - mean).dot(axis);
+  std::vector<double> sorted = along;
+  std::nth_element(sorted.begin(), sorted.begin() + count / 2, sorted.end());
+  const double middle = sorted[count / 2];
+  // Upward crossings of the median, each after the motion went below it by
+  // the hysteresis (a jitter about the median is no cycle).
+  std::vector<int> crossings;
+  bool below = false;
+  for (int f = 0; f < count; ++f) {
+    const double a = along[f] - middle;
+    if (a < -kCycleHysteresisPx) below = true;
+    if (below && a >= 0.0) {
+      crossings.push_back(f);
+      below = false;
+    }
+  }
+  std::vector<MotionCycle> cycles;
+  for (size_t k = 0; k + 1 < crossings.size(); ++k) {
+    MotionCycle cycle;
+    cycle.begin = crossings[k];
+    cycle.end = crossings[k + 1];
+    double sum = 0.0;
+    int steps = 0;
+    for (int f = cycle.begin; f < cycle.end; ++f) {  // f + 1 <= end < count
+      double step = 0.0;
+      int free = 0;
+      for (size_t i = 0; i < frames[f].size(); ++i) {
+        if (clamped[i] != 0) continue;
+        step += (frames[f + 1][i] - frames[f][i]).squaredNorm();
+        ++free;
+      }
+      if (free > 0) sum += step / free;
+      ++steps;
+    }
+    cycle.mean_square_step_px2 = steps > 0 ? sum / steps : 0.0;
+    cycles.push_back(cycle);
+  }
+  return cycles;
+}
+
+namespace {
+
+// Each node's mean position and each edge's mean length per cycle, fitted
+// against the cycle's mean squared step: the values at no motion are the
+// fit's intercepts. False (nothing written) with fewer than
+// kMinRestCycles cycles, or where the slowest cycle moves more than half as
+// much as the fastest (the intercept would be an extrapolation beyond the
+// motion's own range).
+bool RestAtNoMotion(const Mesh& mesh, std::span<const std::vector<Vec2>> frames,
+                    const std::vector<MotionCycle>& cycles, std::vector<Vec2>& positions,
+                    std::vector<double>& lengths) {
+  if (static_cast<int>(cycles.size()) < kMinRestCycles) return false;
+  double slowest = std::numeric_limits<double>::infinity(), fastest = 0.0, mean_s = 0.0;
+  for (const MotionCycle& c : cycles) {
+    slowest = std::min(slowest, c.mean_square_step_px2);
+    fastest = std::max(fastest, c.mean_square_step_px2);
+    mean_s += c.mean_square_step_px2 / static_cast<double>(cycles.size());
+  }
+  if (!(slowest <= 0.5 * fastest)) return false;
+  double spread = 0.0;
+  for (const MotionCycle& c : cycles) spread += std::pow(c.mean_square_step_px2 - mean_s, 2);
+  // Intercept of y against s by least squares: mean(y) - slope mean(s),
+  // slope = sum (s - mean s) y / spread; so each cycle weighs
+  // 1 / m - mean(s) (s_c - mean s) / spread.
+  const size_t n = positions.size();
+  std::vector<Vec2> cycle_positions(n);
+  std::vector<double> cycle_lengths(lengths.size());
+  std::fill(positions.begin(), positions.end(), Vec2::Zero());
+  std::fill(lengths.begin(), lengths.end(), 0.0);
+  for (const MotionCycle& c : cycles) {
+    MeanShape(mesh, frames.subspan(c.begin, c.end - c.begin), cycle_positions, cycle_lengths);
+    const double weight = 1.0 / static_cast<double>(cycles.size()) -
+                          mean_s * (c.mean_square_step_px2 - mean_s) / spread;
+    for (size_t i = 0; i < n; ++i) positions[i] += weight * cycle_positions[i];
+    for (size_t k = 0; k < lengths.size(); ++k) lengths[k] += weight * cycle_lengths[k];
+  }
+  return true;
+}
+
 }  // namespace
 
 NodeMotion EstimateNodeMotion(const Mesh& mesh, std::span<const uint8_t> clamped,
@@ -366,15 +501,14 @@ NodeMotion EstimateNodeMotion(const Mesh& mesh, std::span<const uint8_t> clamped
   NodeMotion motion;
   motion.rest_shape_px.assign(n, Vec2::Zero());
   std::vector<double> lengths(mesh.edges.size(), 0.0);
-  for (int f = 0; f < mean_frames; ++f) {
-    const std::vector<Vec2>& x = shapes.positions[f];
-    for (size_t i = 0; i < n; ++i) motion.rest_shape_px[i] += x[i];
-    for (size_t k = 0; k < lengths.size(); ++k) {
-      lengths[k] += (x[mesh.edges[k][0]] - x[mesh.edges[k][1]]).norm();
-    }
+  const std::span<const std::vector<Vec2>> frames(shapes.positions.data(),
+                                                  static_cast<size_t>(mean_frames));
+  const std::vector<MotionCycle> cycles = MotionCycles(frames, clamped);
+  if (!RestAtNoMotion(mesh, frames, cycles, motion.rest_shape_px, lengths)) {
+    // No swing that dies down to tell its share from the rest: the means
+    // over the window.
+    MeanShape(mesh, frames, motion.rest_shape_px, lengths);
   }
-  for (Vec2& p : motion.rest_shape_px) p /= static_cast<double>(mean_frames);
-  for (double& l : lengths) l /= static_cast<double>(mean_frames);
   EmbedLengths(mesh, clamped, lengths, motion.rest_shape_px);
 
   // Position(t) ~ c0 + c1 t + c2 t^2 per node; the velocity is c1 fps.

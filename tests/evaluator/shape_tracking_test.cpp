@@ -1,7 +1,7 @@
 // Tracking the mesh through the video (shape_tracking.h): a strip moved
 // rigidly is followed node by node; the start of a free motion is the
 // velocity of the tracked nodes and a rest shape that a swing does not
-// shrink; bad arguments are named.
+// shrink or stretch; bad arguments are named.
 
 #include "calib/evaluator/shape_tracking.h"
 
@@ -11,8 +11,12 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <functional>
 #include <numbers>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -104,23 +108,37 @@ TEST(ShapeTracking, TheVelocityIsTheSlopeAtFrameZeroOfEachNodesTrack) {
   }
 }
 
+// The strip clamped at its top-middle node, (95, 40) on the top row, and
+// its shapes turned about that node by angle(f) and stretched about it by
+// stretch(f) in frames f = 0 .. count - 1.
+struct ClampedStrip {
+  Mesh mesh = Strip();
+  Vec2 pivot = mesh.rest_positions[1];
+  std::vector<uint8_t> clamped = std::vector<uint8_t>(mesh.NumNodes(), 0);
+  ClampedStrip() { clamped[1] = 1; }
+
+  TrackedShapes Swing(int count, const std::function<double(int)>& angle,
+                      const std::function<double(int)>& stretch) const {
+    TrackedShapes shapes;
+    for (int f = 0; f < count; ++f) {
+      std::vector<Vec2> x;
+      for (const Vec2& p : mesh.rest_positions) x.push_back(Rotated(pivot + stretch(f) * (p - pivot), pivot, angle(f)));
+      shapes.positions.push_back(x);
+      shapes.outline_distance_px.push_back(0.0);
+    }
+    return shapes;
+  }
+};
+
 TEST(ShapeTracking, ASwingDoesNotShrinkTheRestShape) {
   // The strip swings rigidly +-0.35 rad about its clamped top-middle node.
   // The mean of its positions is shorter than the strip (by 1 - cos 0.35,
   // 7 px at the foot); the rest shape has the strip's own lengths, hanging.
-  const Mesh mesh = Strip();
-  const int top_middle = 1;  // (95, 40) on the top row
-  const Vec2 pivot = mesh.rest_positions[top_middle];
-  std::vector<uint8_t> clamped(mesh.NumNodes(), 0);
-  clamped[top_middle] = 1;
-  TrackedShapes shapes;
-  for (int f = 0; f < 8; ++f) {
-    std::vector<Vec2> x;
-    for (const Vec2& p : mesh.rest_positions) x.push_back(Rotated(p, pivot, f % 2 == 0 ? 0.35 : -0.35));
-    shapes.positions.push_back(x);
-    shapes.outline_distance_px.push_back(0.0);
-  }
-  const NodeMotion motion = EstimateNodeMotion(mesh, clamped, shapes, 240.0, 8, 2);
+  const ClampedStrip strip;
+  const Mesh& mesh = strip.mesh;
+  const TrackedShapes shapes =
+      strip.Swing(8, [](int f) { return f % 2 == 0 ? 0.35 : -0.35; }, [](int) { return 1.0; });
+  const NodeMotion motion = EstimateNodeMotion(mesh, strip.clamped, shapes, 240.0, 8, 2);
   double worst = 0.0, worst_mean = 0.0;
   for (int i = 0; i < mesh.NumNodes(); ++i) {
     worst = std::max(worst, (motion.rest_shape_px[i] - mesh.rest_positions[i]).norm());
@@ -130,6 +148,49 @@ TEST(ShapeTracking, ASwingDoesNotShrinkTheRestShape) {
   }
   EXPECT_GT(worst_mean, 5.0) << "the mean of positions shrinks the strip";
   EXPECT_LT(worst, 0.01);
+}
+
+TEST(ShapeTracking, ASwingThatStretchesTheStripRestsAtTheStripsOwnLengths) {
+  // The strip swings about its clamped top-middle node, dying down over 12
+  // cycles, and is stretched about the clamp by the swing, as a swinging
+  // strip is by its own momentum: by 1 + b theta'^2 (5 % at the start).
+  // Each cycle's mean lengths are then longer by its energy; over the first
+  // cycles they are long, and the fit against the cycles' energies finds
+  // the strip's own lengths and its hanging pose.
+  const ClampedStrip strip;
+  const Mesh& mesh = strip.mesh;
+  const std::vector<uint8_t>& clamped = strip.clamped;
+  constexpr int kPeriod = 40, kCycles = 12, kFrames = kCycles * kPeriod + 5;
+  const double omega = 2.0 * std::numbers::pi / kPeriod;  // rad a frame
+  const auto amplitude = [&](int f) { return 0.5 * std::exp(-f / (3.0 * kPeriod)); };
+  const TrackedShapes shapes = strip.Swing(
+      kFrames, [&](int f) { return amplitude(f) * std::cos(omega * f); },
+      [&](int f) { return 1.0 + 8.0 * std::pow(amplitude(f) * omega * std::sin(omega * f), 2); });
+  const std::vector<MotionCycle> cycles =
+      MotionCycles(std::span<const std::vector<Vec2>>(shapes.positions), clamped);
+  ASSERT_GE(cycles.size(), static_cast<size_t>(kCycles - 2));
+  for (const MotionCycle& c : cycles) EXPECT_NEAR(c.end - c.begin, kPeriod, 1) << c.begin;
+  EXPECT_GT(cycles.front().mean_square_step_px2, 10.0 * cycles.back().mean_square_step_px2);
+
+  const auto worst_length_error = [&](const std::vector<Vec2>& x) {
+    double worst = 0.0;
+    for (const std::array<int, 2>& e : mesh.edges) {
+      const double rest = (mesh.rest_positions[e[0]] - mesh.rest_positions[e[1]]).norm();
+      worst = std::max(worst, std::abs((x[e[0]] - x[e[1]]).norm() / rest - 1.0));
+    }
+    return worst;
+  };
+  const NodeMotion motion = EstimateNodeMotion(mesh, clamped, shapes, 240.0, kFrames, 5);
+  const NodeMotion first_cycles = EstimateNodeMotion(mesh, clamped, shapes, 240.0, 2 * kPeriod + 1, 5);
+  EXPECT_GT(worst_length_error(first_cycles.rest_shape_px), 0.01) << "the swing stretches the mean";
+  EXPECT_LT(worst_length_error(motion.rest_shape_px), 0.002);
+  const auto worst_node_error = [&](const std::vector<Vec2>& x) {
+    double worst = 0.0;
+    for (int i = 0; i < mesh.NumNodes(); ++i) worst = std::max(worst, (x[i] - mesh.rest_positions[i]).norm());
+    return worst;
+  };
+  EXPECT_GT(worst_node_error(first_cycles.rest_shape_px), 1.0) << "px from the hanging strip";
+  EXPECT_LT(worst_node_error(motion.rest_shape_px), 0.5) << "px from the hanging strip";
 }
 
 TEST(ShapeTracking, ARegistrationHoldsTheTrianglesToTheReferenceShape) {
@@ -225,6 +286,9 @@ TEST(ShapeTracking, BadArgumentsAreNamed) {
             std::string::npos);
   EXPECT_NE(message([&] { EstimateNodeMotion(mesh, none, one, 240.0, 3, 1); })
                 .find("a mean over 3 frames asked of 1 tracked frames"),
+            std::string::npos);
+  const std::vector<std::vector<Vec2>> frames = {mesh.rest_positions, std::vector<Vec2>(5)};
+  EXPECT_NE(message([&] { MotionCycles(frames, none); }).find("frame 1 has 5 nodes and"),
             std::string::npos);
 }
 

@@ -34,10 +34,14 @@ struct PreparationOptions {
   /// For an object that moves by itself (clamps, no obstacles): track the
   /// mesh through the first `motion_window_s` seconds of the video
   /// (shape_tracking.h) and start a model with inertia from every node's
-  /// observed velocity, resting at the tracked shapes' mean
+  /// observed velocity, resting at the tracked shape at no motion
   /// (TrackObservedMotion). Off: the estimate from the centroid's motion.
   bool track_motion = true;
-  double motion_window_s = 1.0;
+  /// 20 s: the whole of a recording of a swing that dies down. The rest
+  /// shape needs cycles of different energies (NodeMotion::rest_shape_px):
+  /// over the first second alone the real strips' rest shapes came out 2 px
+  /// long and their areas 3-5 % large, stretched by the swing.
+  double motion_window_s = 20.0;
   /// Only the first `max_frames` frames of the recording are simulated and
   /// scored (a calibration on a short horizon); 0: every frame. The
   /// observed motion is estimated before the cut, as without it.

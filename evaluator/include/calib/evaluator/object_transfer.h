@@ -2,7 +2,7 @@
 // Another recording of the same object: its model carried over.
 //
 // A clamped object's recording is meshed from its own frame 0, and its rest
-// shape is estimated from its own first second (shape_tracking.h). Two
+// shape is estimated from its own video (shape_tracking.h). Two
 // recordings of one strip thus get two lattices and two rest shapes, and a
 // lattice of springs is not the continuum: at one parameter set the two
 // meshes swing at periods 1-4 % apart, which over a recording of many

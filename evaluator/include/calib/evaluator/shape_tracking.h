@@ -84,14 +84,41 @@ MeshRegistration RegisterMesh(const Mesh& mesh, std::span<const uint8_t> clamped
                               std::span<const Vec2> start, std::span<const Vec2> reference,
                               const BitMask& mask, const ShapeTrackingOptions& options = {});
 
+/// One cycle of a swing in tracked shapes: frames [begin, end), from one
+/// upward crossing of its centre through the median to the next.
+struct MotionCycle {
+  int begin = 0;
+  int end = 0;
+  /// Mean over the cycle's frames and the free nodes of the squared step
+  /// from one frame to the next, px^2: a swing's energy, up to a factor.
+  double mean_square_step_px2 = 0.0;
+};
+
+/// The whole cycles of the motion in `frames` (each #N positions; nodes
+/// with clamped[i] != 0 left out): the free nodes' mean position projected
+/// on its principal direction of motion, cut where it crosses its median
+/// upwards after having been at least half a pixel below it. Empty for
+/// fewer than two such crossings. Throws std::invalid_argument for a frame
+/// of another size than `clamped`.
+std::vector<MotionCycle> MotionCycles(std::span<const std::vector<Vec2>> frames,
+                                      std::span<const uint8_t> clamped);
+
 /// The start of a free motion, per node, from tracked shapes.
 struct NodeMotion {
-  /// The shape the object moves about: the shape whose edge lengths are
-  /// nearest (least squares) the tracked edges' mean lengths over the
-  /// window, found from the mean of the tracked positions. A swing's
+  /// The shape the object moves about, at rest: the shape whose edge
+  /// lengths are nearest (least squares) the tracked edges' lengths at no
+  /// motion, found from the tracked positions at no motion. A swing's
   /// stretch and squeeze cancel in the mean lengths to first order; a mean
   /// of positions would also shrink every part that turns back and forth
-  /// (the mean of a turning vector is shorter than the vector).
+  /// (the mean of a turning vector is shorter than the vector). To second
+  /// order both move with the swing's energy (a swinging strip is
+  /// stretched by its own momentum, and its mean pose rises with its
+  /// amplitude), so over at least three whole cycles (MotionCycles) whose
+  /// energies differ (the slowest moving at most half as much as the
+  /// fastest: a decaying swing) each node's mean position and each edge's
+  /// mean length per cycle are fitted linearly against the cycle's mean
+  /// squared step, and their intercepts at no motion are taken. Otherwise
+  /// the means over the window.
   std::vector<Vec2> rest_shape_px;
   /// Each node's velocity at frame 0: slope at 0 of the least-squares
   /// quadratic through its first `velocity_frames` tracked positions.
