@@ -19,9 +19,12 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace calib::loop_detail {
@@ -42,6 +45,34 @@ struct LoopRecording {
   std::vector<Vec2> video_tips;
 };
 
+
+// A calibration over lengthening horizons (a swing's: frames from its
+// start, 0 for the whole recordings).
+struct HorizonFit {
+  ParameterValues values;
+  double score = std::numeric_limits<double>::infinity();  ///< over the last horizon
+};
+
+/// One search over horizon k (its index in the horizons) from `from`: its
+/// best values and their score over that horizon (infinite where nothing
+/// simulated).
+using HorizonSearch = std::function<std::pair<ParameterValues, double>(size_t k, const ParameterValues& from)>;
+/// The score of `values` over the first `frames` frames (0: all of them).
+using HorizonScore = std::function<double(const ParameterValues& values, int frames)>;
+
+/// Follows `horizons` after the first from `fit`, the first horizon's fit:
+/// each later horizon is searched from the previous one's best (from the
+/// fit so far where a search simulated nothing). The fit is, of the first
+/// horizon's fit and every later search's best, the one that scores best
+/// over the last horizon (ties: the later horizon's). A search from a point
+/// need not evaluate the point, and over a longer horizon a small step of a
+/// swing's values puts it out of phase by the end: a longer horizon's
+/// search can end worse over the whole recordings than a shorter one's
+/// best. `chosen` (if set) hears where an earlier horizon's best is the
+/// fit: its frames, its score and the last search's, over the last horizon.
+HorizonFit FollowHorizons(const std::vector<int>& horizons, ParameterValues fit,
+                          const HorizonSearch& search, const HorizonScore& score,
+                          const std::function<void(int frames, double score, double last)>& chosen = {});
 
 // One calibrated model and how it does everywhere.
 struct Fit {
@@ -213,7 +244,12 @@ class StageCalibrator {
   ParameterValues CalibrateSwing(int index, const std::vector<std::string>& effects,
                                  std::vector<ParameterSetting>* settings, int64_t budget,
                                  uint64_t seed, Fit* fit);
-  double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values) const;
+  /// The training recordings (their first `frames` frames; 0: every frame).
+  std::vector<std::shared_ptr<const PreparedRecording>> TrainingRecordings(int frames) const;
+  /// The training recordings' XOR sum of `values` (over their first
+  /// `frames` frames; 0: every frame); infinity where it fails.
+  double TrainingScore(const std::vector<std::string>& effects, const ParameterValues& values,
+                       int frames = 0) const;
   std::vector<int> HeldOutIndices() const;
   /// Held-out recordings are there and none is a stretch of a training video.
   bool WholeRecordingsHeldOut() const;
