@@ -36,8 +36,12 @@ long_tests='*LoopOnSyntheticEffect*:Loop.AddsNothing*:Loop.EquallyGoodFitsMeasur
 # Loop.TheSimulationReachesTheStoredJobsAndTheReport, which runs the loop's
 # stages, its store and its report instrumented; and the multi-host test,
 # whose ranks run in network namespaces and which CI runs uninstrumented.
+# And the rest shape tracked through a whole real recording (1074 frames:
+# 4 s at full speed, 2 minutes instrumented), whose tracking and estimate
+# run instrumented in ShapeTracking.* and ObjectTransferTest.*.
 if ((ci)); then
   long_tests="$long_tests:GoldenTest.LoopOnPushCentre*:LoopBenchmarkCli.*:Loop.AResumedLoop*:LoopCli.*"
+  long_tests="$long_tests:RealRecordingMotion.*"
 fi
 # The tests that start MPI jobs (with the tests that are not gtest cases:
 # the scripts' and the command line's, run by ctest), each program's with
