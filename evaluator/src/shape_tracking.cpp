@@ -456,6 +456,7 @@ bool RestAtNoMotion(const Mesh& mesh, std::span<const std::vector<Vec2>> frames,
   if (!(slowest <= 0.5 * fastest)) return false;
   double spread = 0.0;
   for (const MotionCycle& c : cycles) spread += std::pow(c.mean_square_step_px2 - mean_s, 2);
+  if (!(spread > 0.0)) return false;  // no motion in any cycle: nothing to fit against
   // Intercept of y against s by least squares: mean(y) - slope mean(s),
   // slope = sum (s - mean s) y / spread; so each cycle weighs
   // 1 / m - mean(s) (s_c - mean s) / spread.

@@ -14,9 +14,9 @@
 
 #include <cmath>
 #include <limits>
-#include <tuple>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace calib::loop_detail {

@@ -1,11 +1,13 @@
 // Tests on the real recordings in shared/data/real (read in place, never
 // copied). Skipped where that folder is absent.
 
+#include "calib/core/mesh.h"
 #include "calib/core/mesher.h"
 #include "calib/core/simulator.h"
 #include "calib/evaluator/bit_mask.h"
 #include "calib/evaluator/contour.h"
 #include "calib/evaluator/evaluation.h"
+#include "calib/evaluator/mask_geometry.h"
 #include "calib/evaluator/recording.h"
 #include "calib/evaluator/segmentation.h"
 #include "support/test_support.h"
@@ -211,14 +213,8 @@ TEST(RealRecordingMotion, TheRestShapeIsTheStripHangingStill) {
   const std::vector<Vec2>& rest = p.scene.motion.node_rest_px;
   ASSERT_EQ(rest.size(), static_cast<size_t>(p.mesh.NumNodes()));
   double rest_area = 0.0;
-  Vec2 rest_centroid = Vec2::Zero();
-  for (const auto& [a, b, c] : p.mesh.triangles) {
-    const Vec2 u = rest[b] - rest[a], v = rest[c] - rest[a];
-    const double area = 0.5 * (u.x() * v.y() - u.y() * v.x());
-    rest_area += area;
-    rest_centroid += area * (rest[a] + rest[b] + rest[c]) / 3.0;
-  }
-  rest_centroid /= rest_area;
+  for (const auto& [a, b, c] : p.mesh.triangles) rest_area += SignedArea(rest[a], rest[b], rest[c]);
+  const Vec2 rest_centroid = AreaCentroid(p.mesh, rest);
 
   constexpr int kLastFrames = 120;
   const int frames = static_cast<int>(p.object_masks.size());
@@ -226,18 +222,9 @@ TEST(RealRecordingMotion, TheRestShapeIsTheStripHangingStill) {
   double still_area = 0.0;
   Vec2 still_centroid = Vec2::Zero();
   for (int f = frames - kLastFrames; f < frames; ++f) {
-    const BitMask& mask = p.object_masks[f];
-    double count = 0.0;
-    Vec2 sum = Vec2::Zero();
-    for (int y = 0; y < mask.height(); ++y) {
-      for (int x = 0; x < mask.width(); ++x) {
-        if (!mask.Get(x, y)) continue;
-        count += 1.0;
-        sum += Vec2(x + 0.5, y + 0.5);
-      }
-    }
-    still_area += count / kLastFrames;
-    still_centroid += sum / count / kLastFrames;
+    const MaskMoments moments = ComputeMoments(p.object_masks[f]);
+    still_area += static_cast<double>(moments.area_px) / kLastFrames;
+    still_centroid += moments.centroid_px / kLastFrames;
   }
   EXPECT_NEAR(rest_area, still_area, 0.015 * still_area);
   EXPECT_LT((rest_centroid - still_centroid).norm(), 1.2)
