@@ -317,6 +317,13 @@ void Simulator::StartFromObservedMotion() {
   }
   rest_shifted_ = true;
   std::copy(initial_motion_.velocities().begin(), initial_motion_.velocities().end(), v_.begin());
+  // The tracked shape's own start pose: the rest shape posed on frame 0
+  // (unstretched), rather than the mesh fitted to its blurred outline.
+  const std::vector<Vec2>& start = scene_.motion.node_start_px;
+  if (initial_motion_.from_tracked_shape() && start.size() == x_.size()) {
+    std::copy(start.begin(), start.end(), x_.begin());
+    std::copy(start.begin(), start.end(), x_prev_.begin());
+  }
 }
 
 void Simulator::ResetState() {

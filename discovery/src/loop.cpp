@@ -396,6 +396,13 @@ LoopResult Loop::Run() {
   for (const LoopRecording& r : recs_) {
     report_.notes.push_back(fmt::format("{}: segmentation noise {:.0f} px per frame ({} frames)",
                                         r.name, r.noise_px, r.prepared->scene.num_frames));
+    if (r.prepared->motion_blur_frames > 0.0) {
+      report_.notes.push_back(fmt::format(
+          "{}: motion blur {:.3f} frames (the mask widens by that times the object's speed across its "
+          "outline): the mesh is scored as the camera sees it, and a swing starts from the rest shape "
+          "posed on frame 0",
+          r.name, r.prepared->motion_blur_frames));
+    }
   }
 
   int index = 1;

@@ -127,6 +127,24 @@ void TrackObservedMotion(PreparedRecording& prepared, double window_s) {
   NodeMotion node = EstimateNodeMotion(mesh, clamped, tracked, fps, window, std::min(window, 5));
   motion.node_rest_px = std::move(node.rest_shape_px);
   motion.node_velocity_px_s = std::move(node.velocity_px_s);
+  prepared.motion_blur_frames = EstimateMotionBlur(prepared.object_masks);
+  SetStartPose(prepared);
+}
+
+void SetStartPose(PreparedRecording& prepared) {
+  Scene::ObservedMotion& motion = prepared.scene.motion;
+  const Mesh& mesh = prepared.mesh;
+  motion.node_start_px.clear();
+  if (motion.node_rest_px.size() != static_cast<size_t>(mesh.NumNodes()) ||
+      prepared.object_masks.empty() || !(prepared.motion_blur_frames > 0.0)) {
+    return;
+  }
+  ShapeTrackingOptions options;
+  options.outline_weight = kStartPoseOutlineWeight;
+  const std::vector<uint8_t> clamped = ClampedNodes(mesh, prepared.scene);
+  MeshRegistration registered = RegisterMesh(mesh, clamped, mesh.rest_positions,
+                                             motion.node_rest_px, prepared.object_masks[0], options);
+  motion.node_start_px = std::move(registered.positions);
 }
 
 PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options) {
@@ -182,8 +200,78 @@ Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions&
       mesh_mask_(prepared.object_masks.at(0)) {}
 
 FrameScore Evaluator::ScoreFrame(int frame) {
-  rasterizer_.RasterizeMeshCoverage(prepared_.mesh, simulator_.positions(), mesh_mask_, boundary_);
+  const Vec2* x = prepared_.motion_blur_frames > 0.0 ? Blurred(frame).data()
+                                                     : simulator_.positions().data();
+  rasterizer_.RasterizeMeshCoverage(prepared_.mesh, x, mesh_mask_, boundary_);
   return CompareCoverage(prepared_.object_masks[frame], mesh_mask_, boundary_);
+}
+
+std::span<const Vec2> Evaluator::Blurred(int frame) {
+  const std::vector<Vec2>& x = simulator_.positions();
+  const size_t n = x.size();
+  if (last_positions_.size() != n) {
+    last_positions_.resize(n);
+    seen_positions_.resize(n);
+    outline_normal_.resize(n);
+  }
+  if (frame == 0) {
+    const std::span<const Vec2> v0 = simulator_.initial_velocities();
+    const double dt = prepared_.scene.frame_time_s;
+    for (size_t i = 0; i < n; ++i) {
+      last_positions_[i] = v0.empty() ? x[i] : Vec2(x[i] - v0[i] * dt);
+    }
+  }
+  // Outward normals of the outline at its nodes: the sum of its two edges'
+  // outward normals, each as long as its edge (the loops keep the interior
+  // on a positive triangle's side).
+  for (const std::vector<int>& loop : prepared_.mesh.boundary_loops) {
+    for (int i : loop) outline_normal_[i] = Vec2::Zero();
+    for (size_t k = 0; k < loop.size(); ++k) {
+      const int a = loop[k], b = loop[(k + 1) % loop.size()];
+      const Vec2 e = x[b] - x[a];
+      const Vec2 outward(e.y(), -e.x());
+      outline_normal_[a] += outward;
+      outline_normal_[b] += outward;
+    }
+  }
+  std::copy(x.begin(), x.end(), seen_positions_.begin());
+  const double blur = prepared_.motion_blur_frames;
+  for (const std::vector<int>& loop : prepared_.mesh.boundary_loops) {
+    for (int i : loop) {
+      const double norm = outline_normal_[i].norm();
+      if (!(norm > 0.0)) continue;
+      const Vec2 normal = outline_normal_[i] / norm;
+      const double across = std::abs((x[i] - last_positions_[i]).dot(normal));  // px a frame
+      seen_positions_[i] += (blur * across) * normal;
+    }
+  }
+  std::copy(x.begin(), x.end(), last_positions_.begin());
+  return seen_positions_;
+}
+
+double EstimateMotionBlur(std::span<const BitMask> masks) {
+  const int n = static_cast<int>(masks.size());
+  if (n < 4) return 0.0;
+  // Least squares of area = a + b sweep over frames [1, n - 1).
+  double s = 0.0, a = 0.0, ss = 0.0, sa = 0.0, aa = 0.0;
+  const double m = n - 2;
+  for (int f = 1; f + 1 < n; ++f) {
+    const double sweep = 0.5 * static_cast<double>(CountXorShifted(masks[f - 1], masks[f + 1], 0, 0));
+    const double area = static_cast<double>(masks[f].Count());
+    s += sweep;
+    a += area;
+    ss += sweep * sweep;
+    sa += sweep * area;
+    aa += area * area;
+  }
+  const double var_s = ss - s * s / m;
+  const double var_a = aa - a * a / m;
+  const double cov = sa - s * a / m;
+  if (!(var_s > 0.0) || !(var_a > 0.0)) return 0.0;
+  const double slope = cov / var_s;
+  const double r2 = cov * cov / (var_s * var_a);
+  if (!(slope >= kMotionBlurMinFrames) || r2 < kMotionBlurMinR2) return 0.0;
+  return std::min(slope, kMotionBlurMaxFrames);
 }
 
 }  // namespace calib

@@ -252,5 +252,32 @@ TEST(InitialMotion, ATrackedShapeHangsInEquilibriumUnderGravityAndMovesWithTheTr
               0.1 * velocity[foot].x() / 240.0);
 }
 
+TEST(InitialMotion, ATrackedStartPoseIsWhereTheModelStartsAtEveryReset) {
+  // The tracked shape's start pose (node_start_px) replaces the mesh's
+  // positions at frame 0, at every reset; without one the mesh's stay.
+  const Mesh mesh = StartingStrip();
+  Scene scene = SwingScene(10, Vec2::Zero(), Vec2::Zero());
+  scene.motion.node_rest_px = mesh.rest_positions;
+  scene.motion.node_velocity_px_s.assign(mesh.NumNodes(), Vec2::Zero());
+  std::vector<Vec2> start = mesh.rest_positions;
+  for (Vec2& p : start) p += Vec2(0.5, 0.002 * (p.y() - 100.0));  // moved and a little stretched
+  scene.motion.node_start_px = start;
+  const ParameterValues values = InertiaValues(0.0);
+  Simulator sim(mesh, scene, {}, ModelDefinition{{"inertia"}});
+  for (int reset = 0; reset < 2; ++reset) {
+    sim.Reset(values);
+    ASSERT_EQ(sim.status(), SimulationStatus::kRunning) << sim.failure_reason();
+    for (int i = 0; i < mesh.NumNodes(); ++i) {
+      EXPECT_EQ(sim.positions()[i], start[i]) << "node " << i << ", reset " << reset;
+    }
+    while (sim.Advance()) {
+    }
+  }
+  scene.motion.node_start_px.clear();
+  Simulator own(mesh, scene, {}, ModelDefinition{{"inertia"}});
+  own.Reset(values);
+  for (int i = 0; i < mesh.NumNodes(); ++i) EXPECT_EQ(own.positions()[i], mesh.rest_positions[i]);
+}
+
 }  // namespace
 }  // namespace calib

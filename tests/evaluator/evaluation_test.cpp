@@ -252,5 +252,84 @@ TEST(EstimateObservedMotion, UnknownWithoutClampsWithObstaclesOrWithoutAnObjectI
   EXPECT_FALSE(EstimateObservedMotion(HangingRecording(), late).known);
 }
 
+// Motion blur: the mesh's outline nodes are moved outwards by the blur
+// times their speed across the outline. The area the mesh covers grows by
+// that displacement times each node's share of the outline (to first
+// order), and not at all where nothing moves.
+TEST(Evaluator, ScoresTheMeshAsTheCameraSeesItWithMotionBlur) {
+  PreparedRecording blurred = Reference();
+  blurred.motion_blur_frames = 0.5;
+  const Mesh& mesh = blurred.mesh;
+  std::vector<double> sharp_area, seen_area, expected_growth;
+  std::vector<Vec2> last;
+  const auto area = [&](const PreparedRecording& p, int f, const FrameScore& score) {
+    return static_cast<double>(p.object_masks[f].Count()) - score.missed_px + score.extra_px;
+  };
+  Evaluator sharp(Reference(), {});
+  ASSERT_TRUE(sharp.Evaluate(bench::ReferenceParameters(),
+                             [&](int f, const Simulator& sim, const BitMask&, const FrameScore& score) {
+                               sharp_area.push_back(area(Reference(), f, score));
+                               const std::vector<Vec2>& x = sim.positions();
+                               double growth = 0.0;
+                               for (const std::vector<int>& loop : mesh.boundary_loops) {
+                                 const size_t n = loop.size();
+                                 for (size_t k = 0; k < n; ++k) {
+                                   const Vec2& prev = x[loop[(k + n - 1) % n]];
+                                   const Vec2& next = x[loop[(k + 1) % n]];
+                                   const Vec2 chord = next - prev;
+                                   const Vec2 normal = Vec2(chord.y(), -chord.x()).normalized();
+                                   const Vec2 step = f == 0 ? Vec2::Zero() : Vec2(x[loop[k]] - last[loop[k]]);
+                                   growth += 0.5 * std::abs(step.dot(normal)) * 0.5 * chord.norm();
+                                 }
+                               }
+                               expected_growth.push_back(growth);
+                               last = x;
+                             })
+                  .ok());
+  Evaluator seen(blurred, {});
+  ASSERT_TRUE(seen.Evaluate(bench::ReferenceParameters(),
+                            [&](int f, const Simulator&, const BitMask&, const FrameScore& score) {
+                              seen_area.push_back(area(blurred, f, score));
+                            })
+                  .ok());
+  ASSERT_EQ(seen_area.size(), sharp_area.size());
+  EXPECT_EQ(seen_area[0], sharp_area[0]) << "nothing moves before frame 0";
+  double growth = 0.0, expected = 0.0;
+  for (size_t f = 1; f < seen_area.size(); ++f) {
+    EXPECT_GE(seen_area[f], sharp_area[f] - 1e-9) << "frame " << f;
+    growth += seen_area[f] - sharp_area[f];
+    expected += expected_growth[f];
+  }
+  ASSERT_GT(expected, 1.0) << "the finger moves the outline";
+  EXPECT_NEAR(growth, expected, 0.05 * expected);
+}
+
+// A block that swings and whose mask is widened by 0.3 frames times its
+// speed on each side (blur) gives a blur of 0.3; the same swing unwidened
+// or widened by too little to show, and a still block, give none.
+TEST(EstimateMotionBlur, TheMasksWideningWithSpeedIsTheBlur) {
+  const double w = 2.0 * M_PI / 48.0;
+  const auto swing = [&](double b) {
+    std::vector<BitMask> masks;
+    for (int f = 0; f < 480; ++f) {
+      const double x = 150.0 + 60.0 * std::sin(w * f);
+      const double widen = b * std::abs(60.0 * w * std::cos(w * f));
+      BitMask mask(400, 200);
+      for (int y = 50; y < 110; ++y) {
+        mask.SetSpan(y, static_cast<int>(std::lround(x - widen)),
+                     static_cast<int>(std::lround(x + 20.0 + widen)));
+      }
+      masks.push_back(std::move(mask));
+    }
+    return masks;
+  };
+  EXPECT_NEAR(EstimateMotionBlur(swing(0.3)), 0.3, 0.03);
+  EXPECT_EQ(EstimateMotionBlur(swing(0.0)), 0.0);
+  EXPECT_EQ(EstimateMotionBlur(swing(0.02)), 0.0) << "under a twentieth of a frame: not shown";
+  const std::vector<BitMask> still = MovingBlock(100, [](int) { return 100.0; });
+  EXPECT_EQ(EstimateMotionBlur(still), 0.0);
+  EXPECT_EQ(EstimateMotionBlur({}), 0.0);
+}
+
 }  // namespace
 }  // namespace calib

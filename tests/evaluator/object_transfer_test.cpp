@@ -54,6 +54,10 @@ TEST_F(ObjectTransferTest, AnotherRecordingOfTheObjectGetsItsMeshRestShapeAndAre
       << transfer.reason;
   // The lattice is the training recording's, at the new recording's pose:
   // on its frame-0 outline, nodes in the same clamps.
+  // The synthetic swing's masks show no motion blur: scored as simulated,
+  // started from the mesh itself.
+  EXPECT_EQ(from_->motion_blur_frames, 0.0);
+  EXPECT_TRUE(to.scene.motion.node_start_px.empty());
   EXPECT_EQ(to.mesh.triangles, from_->mesh.triangles);
   EXPECT_EQ(to.mesh.edges, from_->mesh.edges);
   EXPECT_GE(transfer.outline_distance_px, 0.0);

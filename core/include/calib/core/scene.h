@@ -44,6 +44,10 @@ struct Scene {
     /// otherwise; when set they replace the estimate from the centroid.
     std::vector<Vec2> node_rest_px;
     std::vector<Vec2> node_velocity_px_s;
+    /// Per node (#N), where a model started from the tracked shape starts
+    /// in frame 0: the rest shape posed on frame 0's outline
+    /// (evaluator/evaluation.h, SetStartPose). Empty: the mesh's positions.
+    std::vector<Vec2> node_start_px;
     /// Per triangle of the prepared mesh (#T), where the mesh was carried
     /// from another recording of the object (evaluator/object_transfer.h):
     /// the triangles' areas there, px^2, which weight the masses and

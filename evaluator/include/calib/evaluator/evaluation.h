@@ -60,7 +60,32 @@ struct PreparedRecording {
   Mesh mesh;                          ///< rest shape = frame-0 object
   MeshQuality mesh_quality;
   Scene scene;
+  /// The camera's motion blur, in frames (EstimateMotionBlur): the mesh is
+  /// scored with each outline node moved outwards by this times its speed
+  /// across the outline (px a frame). 0: none.
+  double motion_blur_frames = 0.0;
 };
+
+/// How far a moving object's mask reaches beyond the object, per pixel a
+/// frame of its speed across its outline: motion blur. Over the shutter's
+/// time a moving edge covers a band of pixels part of the time, and the
+/// segmentation takes those covered long enough; the mask of an object
+/// moving at v across its outline is wider by b v on each side, its area
+/// larger by b times the area its outline sweeps in a frame. Estimated
+/// from the masks alone: each frame's area against half the pixels that
+/// differ between the frames before and after it (the area swept in one
+/// frame), fitted by least squares over frames [1, n - 1); b is the slope.
+/// 0 where the sweep explains less than kMotionBlurMinR2 of the areas'
+/// variance (a still object, or blur the segmentation does not show) or
+/// the slope is under kMotionBlurMinFrames (a widening of a quarter pixel
+/// at 5 px a frame, under what the pixels show); at most
+/// kMotionBlurMaxFrames (a shutter open the whole frame and every pixel
+/// the object crossed taken). The real strips give 0.20-0.25 (r^2 0.5-0.6); the
+/// project's synthetic hanging strips 0.02.
+double EstimateMotionBlur(std::span<const BitMask> masks);
+inline constexpr double kMotionBlurMinR2 = 0.25;
+inline constexpr double kMotionBlurMinFrames = 0.05;
+inline constexpr double kMotionBlurMaxFrames = 0.5;
 
 /// The scene (obstacles, push, clamps, frame time) of a recording.
 Scene BuildScene(const Recording& recording);
@@ -82,10 +107,31 @@ PreparedRecording FirstFrames(const PreparedRecording& prepared, int frames);
 
 /// Tracks prepared.mesh through the first `window_s` seconds of
 /// prepared.object_masks (at least two frames, at most all) and sets the
-/// per-node fields of prepared.scene.motion: the rest shape is the mean of
-/// the tracked shapes over the window, each node's velocity the slope at
-/// frame 0 of a quadratic through its first five tracked positions.
+/// per-node fields of prepared.scene.motion: the rest shape at no motion
+/// (NodeMotion::rest_shape_px), each node's velocity the slope at frame 0
+/// of a quadratic through its first five tracked positions; then the
+/// motion blur (EstimateMotionBlur, over all the masks) and the start pose
+/// (SetStartPose).
 void TrackObservedMotion(PreparedRecording& prepared, double window_s);
+
+/// The outline's weight (ShapeTrackingOptions::outline_weight) in the
+/// start pose's registration (SetStartPose): a sixteenth of the tracking's,
+/// so that the triangles keep their rest shapes and the outline only poses
+/// them.
+inline constexpr double kStartPoseOutlineWeight = 0.25;
+
+/// Sets prepared.scene.motion.node_start_px, where a model started from
+/// the tracked shape starts in frame 0: the rest shape (node_rest_px)
+/// registered onto frame 0's outline from the mesh's positions, each
+/// triangle held to its rest shape, turned (RegisterMesh with
+/// kStartPoseOutlineWeight). The mesh itself fits frame 0's outline, which
+/// motion blur widens on a moving object: started there, the springs start
+/// stretched (by 4-7 % of the area on the real strips) and ring at their own
+/// high frequencies all through the swing. Where the masks show no motion
+/// blur (motion_blur_frames 0) frame 0's outline is the object's and the
+/// mesh fitted to it is the start: node_start_px is cleared, as where the
+/// rest shape was not tracked.
+void SetStartPose(PreparedRecording& prepared);
 
 /// Segments (or reads the cached segmentation of) every frame, meshes the
 /// frame-0 object and builds the scene (with the observed motion). Throws RecordingError for an
@@ -188,6 +234,11 @@ class Evaluator {
   // wholly covered pixels) and boundary_, and compares it with the frame's
   // object mask.
   FrameScore ScoreFrame(int frame);
+  // The positions as the camera sees them (motion_blur_frames): outline
+  // nodes moved outwards by the blur times their speed across the
+  // outline, from the last frame's positions (frame 0: the initial
+  // velocities).
+  std::span<const Vec2> Blurred(int frame);
   /// Simulates and scores every frame from the state Reset left, up to
   /// the cutoff.
   template <class OnFrame>
@@ -198,6 +249,9 @@ class Evaluator {
   Rasterizer rasterizer_;
   BitMask mesh_mask_;
   std::vector<PixelCoverage> boundary_;  // the partly covered pixels
+  std::vector<Vec2> last_positions_;     // the last frame's (motion blur)
+  std::vector<Vec2> seen_positions_;     // Blurred's
+  std::vector<Vec2> outline_normal_;     // per node, the outline's outward sum
 };
 
 template <class OnFrame>
