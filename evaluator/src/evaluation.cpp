@@ -127,8 +127,6 @@ void TrackObservedMotion(PreparedRecording& prepared, double window_s) {
   NodeMotion node = EstimateNodeMotion(mesh, clamped, tracked, fps, window, std::min(window, 5));
   motion.node_rest_px = std::move(node.rest_shape_px);
   motion.node_velocity_px_s = std::move(node.velocity_px_s);
-  prepared.motion_blur_frames = EstimateMotionBlur(prepared.object_masks);
-  SetStartPose(prepared);
 }
 
 void SetStartPose(PreparedRecording& prepared) {
@@ -169,6 +167,8 @@ PreparedRecording PrepareRecording(const Recording& recording, const Preparation
   prepared.scene.motion = EstimateObservedMotion(recording, prepared.object_masks);
   if (prepared.scene.motion.known && options.track_motion) {
     TrackObservedMotion(prepared, options.motion_window_s);
+    prepared.motion_blur_frames = EstimateMotionBlur(prepared.object_masks);
+    SetStartPose(prepared);
   }
   if (options.max_frames > 0 && options.max_frames < prepared.scene.num_frames) {
     prepared = FirstFrames(prepared, options.max_frames);

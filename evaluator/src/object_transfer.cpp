@@ -139,7 +139,7 @@ ObjectTransfer CarryObjectModel(const PreparedRecording& from, PreparedRecording
   }
   TrackObservedMotion(carried, motion_window_s);
   carried.scene.motion.node_rest_px = rest;
-  SetStartPose(carried);
+  SetStartPose(carried);  // on the carried rest shape; the blur is `to`'s own
   carried.scene.motion.element_area_px2 =
       source.element_area_px2.empty() ? from.mesh.rest_area_px2 : source.element_area_px2;
   to = std::move(carried);

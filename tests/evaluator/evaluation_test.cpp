@@ -279,7 +279,8 @@ TEST(Evaluator, ScoresTheMeshAsTheCameraSeesItWithMotionBlur) {
                                    const Vec2 chord = next - prev;
                                    const Vec2 normal = Vec2(chord.y(), -chord.x()).normalized();
                                    const Vec2 step = f == 0 ? Vec2::Zero() : Vec2(x[loop[k]] - last[loop[k]]);
-                                   growth += 0.5 * std::abs(step.dot(normal)) * 0.5 * chord.norm();
+                                   const double moved = blurred.motion_blur_frames * std::abs(step.dot(normal));
+                                   growth += moved * 0.5 * chord.norm();  // the node's share of the outline
                                  }
                                }
                                expected_growth.push_back(growth);

@@ -109,9 +109,9 @@ PreparedRecording FirstFrames(const PreparedRecording& prepared, int frames);
 /// prepared.object_masks (at least two frames, at most all) and sets the
 /// per-node fields of prepared.scene.motion: the rest shape at no motion
 /// (NodeMotion::rest_shape_px), each node's velocity the slope at frame 0
-/// of a quadratic through its first five tracked positions; then the
-/// motion blur (EstimateMotionBlur, over all the masks) and the start pose
-/// (SetStartPose).
+/// of a quadratic through its first five tracked positions.
+/// PrepareRecording then measures the motion blur (EstimateMotionBlur) and
+/// sets the start pose (SetStartPose).
 void TrackObservedMotion(PreparedRecording& prepared, double window_s);
 
 /// The outline's weight (ShapeTrackingOptions::outline_weight) in the
