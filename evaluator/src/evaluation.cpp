@@ -12,6 +12,8 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 namespace calib {
 
@@ -148,13 +150,36 @@ void SetStartPose(PreparedRecording& prepared) {
 PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  std::vector<BitMask> masks = SegmentRecording(recording, options.segmentation, options.cache_dir);
+  return PrepareSegmented(recording, std::move(masks), options);
+}
+
+PreparedRecording PrepareSegmented(const Recording& recording, std::vector<BitMask> masks,
+                                   const PreparationOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  const std::string& name = recording.video_path.string();
+  if (std::ssize(masks) != recording.num_frames) {
+    throw std::invalid_argument(fmt::format("{}: {} masks for its {} frames", name, masks.size(),
+                                            recording.num_frames));
+  }
+  const PixelRect& roi = recording.roi;
+  for (size_t f = 0; f < masks.size(); ++f) {
+    const BitMask& m = masks[f];
+    if (m.width() != roi.width || m.height() != roi.height || m.origin_x() != roi.x ||
+        m.origin_y() != roi.y) {
+      throw std::invalid_argument(fmt::format(
+          "{}: the mask of frame {} is {}x{} at ({}, {}), its roi {}x{} at ({}, {})", name, f,
+          m.width(), m.height(), m.origin_x(), m.origin_y(), roi.width, roi.height, roi.x, roi.y));
+    }
+  }
   PreparedRecording prepared;
   prepared.recording = recording;
-  prepared.object_masks = SegmentRecording(recording, options.segmentation, options.cache_dir);
+  prepared.object_masks = std::move(masks);
   if (prepared.object_masks.empty() || prepared.object_masks[0].Count() == 0) {
     throw std::invalid_argument(fmt::format(
         "{}: no object found in frame 0 with the HSV range of recording.json (object.color_hsv_*)",
-        recording.video_path.string()));
+        name));
   }
   prepared.outline = ObjectOutline(prepared.object_masks[0], options.outline_tolerance_px);
   prepared.scene = BuildScene(recording);

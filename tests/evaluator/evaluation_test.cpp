@@ -7,14 +7,18 @@
 
 #include "calib/evaluator/evaluation.h"
 #include "calib/evaluator/mask_geometry.h"
+#include "calib/evaluator/recording.h"
+#include "calib/evaluator/segmentation.h"
 
 #include "reference_scene.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace calib {
@@ -113,6 +117,52 @@ TEST(FirstFrames, ScoresTheFirstFramesExactlyAsTheWholeRecordingDoes) {
   EXPECT_EQ(FirstFrames(Reference(), 1000).scene.num_frames, Reference().scene.num_frames)
       << "more frames than it has: all of them";
   EXPECT_THROW(FirstFrames(Reference(), 0), std::invalid_argument);
+}
+
+TEST(PrepareSegmented, IsPrepareRecordingAfterItsSegmentation) {
+  const Recording recording =
+      LoadRecording(std::filesystem::path(CALIB_SOURCE_DIR) / "examples" / "push_centre");
+  PreparationOptions options;
+  options.cache_dir = CALIB_TEST_CACHE_DIR;
+  const PreparedRecording whole = PrepareRecording(recording, options);
+  const PreparedRecording again = PrepareSegmented(
+      recording, SegmentRecording(recording, options.segmentation, options.cache_dir), options);
+  EXPECT_EQ(again.object_masks, whole.object_masks);
+  EXPECT_EQ(again.outline, whole.outline);
+  EXPECT_EQ(again.mesh.rest_positions, whole.mesh.rest_positions);
+  EXPECT_EQ(again.mesh.triangles, whole.mesh.triangles);
+  EXPECT_EQ(again.scene.obstacle_discs.size(), whole.scene.obstacle_discs.size());
+  EXPECT_EQ(again.scene.forces, whole.scene.forces);
+  EXPECT_EQ(again.motion_blur_frames, whole.motion_blur_frames);
+}
+
+TEST(PrepareSegmented, MasksThatDoNotFitTheRecordingAreNamed) {
+  const PreparedRecording& reference = Reference();
+  const std::string video = reference.recording.video_path.string();
+  auto message = [&](std::vector<BitMask> masks) -> std::string {
+    try {
+      PrepareSegmented(reference.recording, std::move(masks), {});
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  std::vector<BitMask> fewer = reference.object_masks;
+  fewer.pop_back();
+  const std::string count = message(fewer);
+  EXPECT_NE(count.find(video), std::string::npos) << count;
+  EXPECT_NE(count.find("59 masks for its 60 frames"), std::string::npos) << count;
+
+  std::vector<BitMask> resized = reference.object_masks;
+  resized[3] = BitMask(resized[3].width() + 1, resized[3].height(), resized[3].origin_x(),
+                       resized[3].origin_y());
+  const std::string size = message(resized);
+  EXPECT_NE(size.find("the mask of frame 3"), std::string::npos) << size;
+
+  std::vector<BitMask> empty = reference.object_masks;
+  empty[0].Clear();
+  const std::string none = message(empty);
+  EXPECT_NE(none.find("no object found in frame 0"), std::string::npos) << none;
 }
 
 TEST(Evaluator, IdenticalInputGivesBitIdenticalScore) {

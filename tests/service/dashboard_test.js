@@ -95,6 +95,7 @@ async function main() {
     "--data-root", path.join(source, "examples"), "--jobs", "1", "--threads-per-job", "1", "--no-report",
   ], { stdio: ["ignore", "ignore", "inherit"] });
   let browser = null;
+  let passed = false;
   try {
     await waitFor("the server's port file", () => fs.existsSync(path.join(state, "port")), 30000);
     const port = fs.readFileSync(path.join(state, "port"), "utf8").trim();
@@ -168,9 +169,18 @@ async function main() {
       await page.screenshot({ path: path.join(process.env.CALIB_SCREENSHOT_DIR, "dashboard_comparison.png"), fullPage: true });
     }
     console.log(`dashboard: signed in, a bad spec named, a job submitted, its plot grew from ${first} to ${grown} points; a comparison's report embedded`);
+    passed = !process.exitCode;
   } finally {
     if (browser) await browser.close();
+    const exited = server.exitCode !== null || server.signalCode !== null
+      ? Promise.resolve()
+      : new Promise((resolve) => server.once("exit", resolve));
     server.kill("SIGTERM");
+    await exited;
+    // The server's state folder goes with a passing run; a failing run's
+    // stays for a look.
+    if (passed) fs.rmSync(state, { recursive: true, force: true });
+    else console.error(`state kept: ${state}`);
   }
 }
 

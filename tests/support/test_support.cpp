@@ -2,8 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <system_error>
+#include <vector>
 #include <unistd.h>
 
 namespace calib::testing {
@@ -36,14 +40,62 @@ Scene OneDiscScene(int frames, double fps, const std::function<Disc(int)>& disc,
 
 std::filesystem::path RealRecordingsDir() { return SharedDir() / "data" / "real"; }
 
+namespace {
+
+// Removes the scratch folders of tests that did not fail, so that repeated runs do
+// not fill the temp folder; a failed test's folders stay for a look, and
+// CALIB_KEEP_SCRATCH=1 keeps every folder. A folder made outside a test (a
+// suite's shared fixture) lives until the program ends.
+class ScratchCleaner final : public ::testing::EmptyTestEventListener {
+ public:
+  void Add(const std::filesystem::path& dir, bool in_test) {
+    (in_test ? test_dirs_ : program_dirs_).push_back(dir);
+  }
+
+ private:
+  void OnTestEnd(const ::testing::TestInfo& info) override {
+    Finish(test_dirs_, !info.result()->Failed());
+  }
+  void OnTestProgramEnd(const ::testing::UnitTest& unit) override {
+    Finish(program_dirs_, !unit.Failed());
+  }
+  static void Finish(std::vector<std::filesystem::path>& dirs, bool ok) {
+    const char* keep = std::getenv("CALIB_KEEP_SCRATCH");
+    const bool remove = ok && (keep == nullptr || *keep == '\0' || *keep == '0');
+    for (const auto& dir : dirs) {
+      std::error_code ignored;
+      if (remove) std::filesystem::remove_all(dir, ignored);
+      else std::fprintf(stderr, "scratch kept: %s\n", dir.c_str());
+    }
+    dirs.clear();
+  }
+
+  std::vector<std::filesystem::path> test_dirs_;
+  std::vector<std::filesystem::path> program_dirs_;
+};
+
+ScratchCleaner& Cleaner() {
+  // Owned by gtest's listener list once appended.
+  static ScratchCleaner* cleaner = [] {
+    auto* c = new ScratchCleaner;
+    ::testing::UnitTest::GetInstance()->listeners().Append(c);
+    return c;
+  }();
+  return *cleaner;
+}
+
+}  // namespace
+
 std::filesystem::path ScratchDir(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   std::string id = name;
   if (info != nullptr) id += std::string("_") + info->test_suite_name() + "_" + info->name();
+  std::replace(id.begin(), id.end(), '/', '_');  // a parameterised test's names hold slashes
   const auto dir = std::filesystem::temp_directory_path() /
                    ("calib_test_" + std::to_string(::getpid()) + "_" + id);
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  Cleaner().Add(dir, info != nullptr);
   return dir;
 }
 

@@ -138,6 +138,14 @@ void SetStartPose(PreparedRecording& prepared);
 /// unreadable video, std::invalid_argument when no object can be meshed.
 PreparedRecording PrepareRecording(const Recording& recording, const PreparationOptions& options);
 
+/// PrepareRecording after its segmentation: meshes frame 0 of `masks` (one
+/// per frame of `recording`, over its roi) and builds the scene and the
+/// observed motion from them. options.segmentation and options.cache_dir
+/// are not used. Throws std::invalid_argument naming the recording where
+/// the masks do not match it (count, size, origin) or frame 0 is empty.
+PreparedRecording PrepareSegmented(const Recording& recording, std::vector<BitMask> masks,
+                                   const PreparationOptions& options);
+
 /// kStopped: stopped early by a ScoreCutoff (EvaluateWithCutoff), every
 /// frame simulated up to then scored.
 enum class EvaluationStatus { kOk, kFailed, kStopped };
