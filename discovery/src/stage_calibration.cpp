@@ -661,9 +661,15 @@ void StageCalibrator::Measure(Fit* fit) const {
                                const FrameScore& score) {
         analyser(frame, simulator, mesh_mask, score);
         if (!clamp) return;
-        Vec2 tip = simulator.positions().front();
-        for (const Vec2& p : simulator.positions()) {
-          if ((p - *clamp).squaredNorm() > (tip - *clamp).squaredNorm()) tip = p;
+        // The mesh's tip as the video's is taken: the farthest pixel of the
+        // mesh as scored (covered at least half, widened by the camera's
+        // motion blur), not its farthest node. Off the roi: the node.
+        Vec2 tip = FarthestPixelFrom(mesh_mask, *clamp);
+        if (!std::isfinite(tip.x())) {
+          tip = simulator.positions().front();
+          for (const Vec2& p : simulator.positions()) {
+            if ((p - *clamp).squaredNorm() > (tip - *clamp).squaredNorm()) tip = p;
+          }
         }
         tips.push_back(tip);
       };

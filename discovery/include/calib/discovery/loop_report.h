@@ -48,7 +48,8 @@ struct RecordingScore {
   std::vector<double> frame_xor;  ///< per frame (may be empty); plotted
   std::vector<double> frame_iou;
   /// For an object held by clamps: the model's tip per frame simulated
-  /// (the node farthest from the clamps' centre), px, and the median over
+  /// (the pixel of the mesh as scored farthest from the clamps' centre, as
+  /// the video's tip is taken), px, and the median over
   /// the frames of its distance to the video's tip (ReportRecording); empty
   /// and NaN otherwise.
   std::vector<double> tip_x_px, tip_y_px;
