@@ -1,6 +1,8 @@
 #include "calib/core/contact_active_set.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstddef>
 
 namespace calib {
 namespace {
@@ -15,8 +17,14 @@ Vec2 Tangent(const Vec2& normal) { return Vec2(-normal.y(), normal.x()); }
 ContactActiveSet::ContactActiveSet(std::span<const int> unknown_of_coordinate, int num_unknowns)
     : unknown_of_coordinate_(unknown_of_coordinate) {
   step_.setZero(num_unknowns);
-  normal_response_.setZero(num_unknowns, kMaxActiveContacts);
-  tangent_response_.setZero(num_unknowns, kMaxActiveContacts);
+  slot_of_unknown_.assign(num_unknowns, -1);
+  local_of_unknown_.assign(num_unknowns, -1);
+  local_unknowns_.reserve(num_unknowns);
+  // The responses at every unknown at most: no allocation in Solve.
+  normal_values_.assign(static_cast<size_t>(kMaxActiveContacts) * num_unknowns, 0.0);
+  tangent_values_.assign(static_cast<size_t>(kMaxActiveContacts) * num_unknowns, 0.0);
+  combination_unknowns_.reserve(4 * kMaxRows);
+  combination_weights_.reserve(4 * kMaxRows);
 }
 
 double ContactActiveSet::Along(const StepContact& contact, const Vec2& direction,
@@ -37,6 +45,15 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
   // its friction; repeat until nothing changes. Each round's system has one
   // row per active contact's normal and per sticking contact's tangent.
   const int num_contacts = static_cast<int>(contacts.size());
+  local_unknowns_.clear();
+  for (const StepContact& c : contacts) {
+    ForEachContactUnknown(c, Vec2(1.0, 1.0), unknown_of_coordinate_, [&](int k, double) {
+      if (local_of_unknown_[k] >= 0) return;
+      local_of_unknown_[k] = static_cast<int>(local_unknowns_.size());
+      local_unknowns_.push_back(k);
+    });
+  }
+  const size_t num_local = local_unknowns_.size();
   active_.clear();
   active_of_contact_.assign(num_contacts, -1);
   excluded_.assign(num_contacts, 0);
@@ -47,8 +64,13 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
   const auto remove = [&](int a) {
     for (int b = a; b + 1 < static_cast<int>(active_.size()); ++b) {
       active_[b] = active_[b + 1];
-      normal_response_.col(b) = normal_response_.col(b + 1);
-      tangent_response_.col(b) = tangent_response_.col(b + 1);
+      normal_response_[b] = normal_response_[b + 1];
+      tangent_response_[b] = tangent_response_[b + 1];
+      for (std::vector<double>* values : {&normal_values_, &tangent_values_}) {
+        const auto next = values->begin() + static_cast<std::ptrdiff_t>((b + 1) * num_local);
+        std::copy(next, next + static_cast<std::ptrdiff_t>(num_local),
+                  next - static_cast<std::ptrdiff_t>(num_local));
+      }
     }
     active_.pop_back();
   };
@@ -63,8 +85,14 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
       const int a = static_cast<int>(active_.size());
       active_.push_back(ActiveContact{j, friction > 0.0, 0.0, 0.0, 0.0});
       active_of_contact_[j] = a;
-      responses.ResponseOf(c, c.normal, normal_response_.col(a));
-      if (friction > 0.0) responses.ResponseOf(c, Tangent(c.normal), tangent_response_.col(a));
+      responses.ResponseOf(c, c.normal, &normal_response_[a]);
+      responses.ResponseValues(normal_response_[a], local_unknowns_,
+                               normal_values_.data() + a * num_local);
+      if (friction > 0.0) {
+        responses.ResponseOf(c, Tangent(c.normal), &tangent_response_[a]);
+        responses.ResponseValues(tangent_response_[a], local_unknowns_,
+                                 tangent_values_.data() + a * num_local);
+      }
       changed = true;
     }
     if (!changed) {
@@ -108,26 +136,53 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
     }
   }
   // The step itself, once: free_step plus each row's force times its
-  // column, the rows in order (the operations StepAlong makes per entry).
-  step_ = free_step;
+  // column, the columns' combinations merged so that each vector the step
+  // keeps is added once.
+  combination_unknowns_.clear();
+  combination_weights_.clear();
+  combination_inverse_turn_ = 0.0;
+  combination_turn_ = 0.0;
   for (int u = 0; u < num_rows_; ++u) {
     const Row& row = rows_[u];
     if (row.slides) {
-      step_ += forces_[u] *
-               (normal_response_.col(row.response) + row.slip * tangent_response_.col(row.response));
+      AddToCombination(normal_response_[row.response], forces_[u]);
+      AddToCombination(tangent_response_[row.response], forces_[u] * row.slip);
     } else if (row.tangent) {
-      step_ += forces_[u] * tangent_response_.col(row.response);
+      AddToCombination(tangent_response_[row.response], forces_[u]);
     } else {
-      step_ += forces_[u] * normal_response_.col(row.response);
+      AddToCombination(normal_response_[row.response], forces_[u]);
     }
+  }
+  for (const int k : combination_unknowns_) slot_of_unknown_[k] = -1;
+  for (const int k : local_unknowns_) local_of_unknown_[k] = -1;
+  step_ = free_step;
+  if (num_rows_ > 0) {
+    responses.AddCombination(combination_unknowns_, combination_weights_, combination_inverse_turn_,
+                             combination_turn_, step_);
   }
   return step_;
 }
 
+void ContactActiveSet::AddToCombination(const StepResponse& response, double weight) {
+  for (int j = 0; j < response.count; ++j) {
+    const int k = response.unknown[j];
+    int& slot = slot_of_unknown_[k];
+    if (slot < 0) {
+      slot = static_cast<int>(combination_unknowns_.size());
+      combination_unknowns_.push_back(k);
+      combination_weights_.push_back(0.0);
+    }
+    combination_weights_[slot] += weight * response.weight[j];
+  }
+  combination_inverse_turn_ += weight * response.inverse_turn;
+  combination_turn_ += weight * response.turn;
+}
+
 double ContactActiveSet::ColumnAt(int u, int k) const {
   const Row& row = rows_[u];
-  if (row.slides) return normal_response_(k, row.response) + row.slip * tangent_response_(k, row.response);
-  return row.tangent ? tangent_response_(k, row.response) : normal_response_(k, row.response);
+  const size_t at = row.response * local_unknowns_.size() + local_of_unknown_[k];
+  if (row.slides) return normal_values_[at] + row.slip * tangent_values_[at];
+  return row.tangent ? tangent_values_[at] : normal_values_[at];
 }
 
 double ContactActiveSet::StepAlong(const StepContact& contact, const Vec2& direction,

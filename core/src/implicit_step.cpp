@@ -43,6 +43,8 @@ ImplicitFirstOrderStep::ImplicitFirstOrderStep(const Model& model, std::span<con
   inverse_turn_.setZero(m);
   solve_scratch_.assign(2 * static_cast<size_t>(m), 0.0);
   inverse_column_of_unknown_.assign(m, -1);
+  column_dot_turn_.assign(m, 0.0);
+  column_dot_turn_stamp_.assign(m, 0);
   inverse_columns_.reserve(static_cast<size_t>(m) *
                            std::min(m, 4 * kMaxActiveContacts));  // a finger's and a pencil's
 }
@@ -134,6 +136,7 @@ bool ImplicitFirstOrderStep::FinishShapeStiffness(std::string* error) {
 }
 
 void ImplicitFirstOrderStep::SetTurn(std::span<const Vec2> x) {
+  ++step_stamp_;  // the turn's dot products are this step's
   turn_.setZero();
   turn_norm_sq_ = 0.0;
   if (free_turn_ == FreeTurn::kNone) return;
@@ -234,26 +237,79 @@ void ImplicitFirstOrderStep::SolveMissingColumns(const StepContact& contact,
   if (num_missing % 2 == 1) InverseColumn(missing[num_missing - 1]);
 }
 
+double ImplicitFirstOrderStep::ColumnDotTurn(int unknown) {
+  if (column_dot_turn_stamp_[unknown] != step_stamp_) {
+    column_dot_turn_stamp_[unknown] = step_stamp_;
+    column_dot_turn_[unknown] =
+        Eigen::Map<const Eigen::VectorXd>(CachedColumn(unknown), num_unknowns()).dot(turn_);
+  }
+  return column_dot_turn_[unknown];
+}
+
+double ImplicitFirstOrderStep::InverseTurnDotTurn() {
+  if (inverse_turn_dot_turn_stamp_ != step_stamp_) {
+    inverse_turn_dot_turn_stamp_ = step_stamp_;
+    inverse_turn_dot_turn_ = inverse_turn_.dot(turn_);
+  }
+  return inverse_turn_dot_turn_;
+}
+
 void ImplicitFirstOrderStep::ResponseOf(const StepContact& contact, const Vec2& direction,
-                                        Eigen::Ref<Eigen::VectorXd> out) {
+                                        StepResponse* out) {
   // A^-1 of the unit force along `direction` at the contact point, from the
-  // cached columns, less A^-1 of its turn: then as any force.
-  const int m = num_unknowns();
+  // cached columns, less A^-1 of its turn: then as any force
+  // (FinishResponse), whose y . turn_ is the combination's.
   SolveMissingColumns(contact, direction);
-  out.setZero();
+  StepResponse& r = *out;
+  r = StepResponse{};
   double g_dot_turn = 0.0;
   ForEachContactUnknown(contact, direction, assembly_.unknown_of_coordinate(), [&](int k, double g) {
-    out += g * Eigen::Map<const Eigen::VectorXd>(InverseColumn(k), m);
+    r.unknown[r.count] = k;
+    r.weight[r.count] = g;
+    ++r.count;
     g_dot_turn += g * turn_[k];
   });
-  if (turn_norm_sq_ > 0.0 && g_dot_turn != 0.0) {
+  if (!(turn_norm_sq_ > 0.0)) return;
+  if (g_dot_turn != 0.0) {
     if (!inverse_turn_valid_) {
       Solve(turn_, inverse_turn_);
       inverse_turn_valid_ = true;
     }
-    out -= (g_dot_turn / turn_norm_sq_) * inverse_turn_;
+    r.inverse_turn = -(g_dot_turn / turn_norm_sq_);
   }
-  FinishResponse(g_dot_turn, out);
+  double y_dot_turn = 0.0;
+  for (int j = 0; j < r.count; ++j) y_dot_turn += r.weight[j] * ColumnDotTurn(r.unknown[j]);
+  if (r.inverse_turn != 0.0) y_dot_turn += r.inverse_turn * InverseTurnDotTurn();
+  r.turn = h_over_m_ * (g_dot_turn / turn_norm_sq_) - y_dot_turn / turn_norm_sq_;
+}
+
+void ImplicitFirstOrderStep::ResponseValues(const StepResponse& response,
+                                            std::span<const int> unknowns, double* out) const {
+  // Each entry summed in the combination's order.
+  const size_t n = unknowns.size();
+  std::fill(out, out + n, 0.0);
+  for (int j = 0; j < response.count; ++j) {
+    const double w = response.weight[j];
+    const double* column = CachedColumn(response.unknown[j]);
+    for (size_t i = 0; i < n; ++i) out[i] += w * column[unknowns[i]];
+  }
+  if (response.inverse_turn != 0.0) {
+    for (size_t i = 0; i < n; ++i) out[i] += response.inverse_turn * inverse_turn_[unknowns[i]];
+  }
+  if (response.turn != 0.0) {
+    for (size_t i = 0; i < n; ++i) out[i] += response.turn * turn_[unknowns[i]];
+  }
+}
+
+void ImplicitFirstOrderStep::AddCombination(std::span<const int> unknowns,
+                                            std::span<const double> weights, double inverse_turn,
+                                            double turn, Eigen::VectorXd& step) const {
+  const int m = num_unknowns();
+  for (size_t j = 0; j < unknowns.size(); ++j) {
+    step += weights[j] * Eigen::Map<const Eigen::VectorXd>(CachedColumn(unknowns[j]), m);
+  }
+  if (inverse_turn != 0.0) step += inverse_turn * inverse_turn_;
+  if (turn != 0.0) step += turn * turn_;
 }
 
 }  // namespace calib

@@ -2,6 +2,8 @@
 
 #include "calib/evaluator/mask_geometry.h"
 
+#include "popcount_clones.h"
+
 #include <bit>
 #include <cmath>
 #include <numbers>
@@ -87,6 +89,7 @@ MaskMoments ComputeMoments(const BitMask& mask) {
   return m;
 }
 
+CALIB_POPCOUNT_CLONES
 int64_t CountXorShifted(const BitMask& a, const BitMask& b, int dx, int dy) {
   int64_t count = 0;
   const int words = a.words_per_row();

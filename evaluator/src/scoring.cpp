@@ -1,23 +1,13 @@
 #include "calib/evaluator/scoring.h"
 
+#include "popcount_clones.h"
+
 #include <bit>
 #include <cstdio>
 #include <cstdlib>
 
 namespace calib {
 namespace {
-
-// The default x86-64 target has no popcount instruction, and the software
-// fallback makes the comparison several times slower than the rasteriser.
-// Without touching the project's flags, GCC/Clang compile this loop twice and
-// pick the popcnt version at load time where the CPU has it.
-// (Not under ThreadSanitizer: see core/src/constraints.cpp.)
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(__POPCNT__) && \
-    !defined(__SANITIZE_THREAD__)
-#define CALIB_POPCOUNT_CLONES __attribute__((target_clones("popcnt", "default")))
-#else
-#define CALIB_POPCOUNT_CLONES
-#endif
 
 struct WordCounts {
   int64_t missed = 0;

@@ -49,14 +49,38 @@ void ForEachContactUnknown(const StepContact& contact, const Vec2& direction,
   }
 }
 
+/// The step's response to a unit force at a contact's point, as the
+/// combination of vectors the step keeps that it is:
+///   sum_j weight[j] A^-1 e_unknown[j] + inverse_turn A^-1 t + turn t
+/// (A the step's matrix, e_k the unit vector of unknown k, t the step's
+/// free turn). At most four unknowns: a point of an edge moves two nodes'
+/// two coordinates.
+struct StepResponse {
+  std::array<int, 4> unknown{};
+  std::array<double, 4> weight{};
+  int count = 0;
+  double inverse_turn = 0.0;
+  double turn = 0.0;
+};
+
 /// What the active set needs of the step: how a force at a contact point
-/// changes the step.
+/// changes the step. The active set reads a response only at the contacts'
+/// unknowns, and forms the step from the responses once: a response is
+/// kept as its combination, never as an m-long vector.
 class ContactResponses {
  public:
   /// The change of the step (over the unknowns) made by a unit force along
   /// `direction` at `contact`'s point: linear in the force.
   virtual void ResponseOf(const StepContact& contact, const Vec2& direction,
-                          Eigen::Ref<Eigen::VectorXd> out) = 0;
+                          StepResponse* out) = 0;
+  /// out[i] = entry unknowns[i] of `response` (made by ResponseOf in this
+  /// step).
+  virtual void ResponseValues(const StepResponse& response, std::span<const int> unknowns,
+                              double* out) const = 0;
+  /// step += sum_j weights[j] A^-1 e_unknowns[j] + inverse_turn A^-1 t +
+  /// turn t: a combination of this step's responses (each unknown once).
+  virtual void AddCombination(std::span<const int> unknowns, std::span<const double> weights,
+                              double inverse_turn, double turn, Eigen::VectorXd& step) const = 0;
 
  protected:
   ~ContactResponses() = default;
@@ -93,9 +117,21 @@ class ContactActiveSet {
   std::vector<int> active_of_contact_;  // index into active_, or -1
   std::vector<uint8_t> excluded_;       // contacts dropped for a singular system
   // The step's response to a unit force along each active contact's normal
-  // and tangent (m rows, kMaxActiveContacts columns).
-  Eigen::MatrixXd normal_response_, tangent_response_;
+  // and tangent, as combinations (StepResponse).
+  std::array<StepResponse, kMaxActiveContacts> normal_response_{}, tangent_response_{};
+  // The unknowns of this Solve's contacts (local_of_unknown_: each one's
+  // place among them, or -1), and each active contact's responses there:
+  // active contact a's at [a L, (a + 1) L), L = local_unknowns_.size():
+  // all the active set reads of them.
+  std::vector<int> local_unknowns_, local_of_unknown_;
+  std::vector<double> normal_values_, tangent_values_;
   Eigen::VectorXd step_;  // the constrained step
+  // The step's combination of the rows' responses: each unknown's weight
+  // (slot_of_unknown_: its place, or -1), A^-1 t's and t's.
+  std::vector<int> combination_unknowns_, slot_of_unknown_;
+  std::vector<double> combination_weights_;
+  double combination_inverse_turn_ = 0.0, combination_turn_ = 0.0;
+  void AddToCombination(const StepResponse& response, double weight);
   // The active contacts' system (fixed capacity: no allocation).
   static constexpr int kMaxRows = 2 * kMaxActiveContacts;
   using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxRows, kMaxRows>;

@@ -68,6 +68,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
@@ -216,12 +217,29 @@ class ImplicitFirstOrderStep final : public EdgeStiffnessSink, private ContactRe
   // cached yet, two in one pass (SolveInPlace2: each its own solve's bits).
   void SolveMissingColumns(const StepContact& contact, const Vec2& direction);
 
+  // Column k's (A^-1 e_k, cached) dot product with this step's turn, for
+  // the unknowns whose stamp is this step's (step_stamp_, advanced by
+  // SetTurn); A^-1 turn_ . turn_ likewise.
+  std::vector<double> column_dot_turn_;
+  std::vector<uint64_t> column_dot_turn_stamp_;
+  uint64_t step_stamp_ = 0, inverse_turn_dot_turn_stamp_ = 0;
+  double inverse_turn_dot_turn_ = 0.0;
+  const double* CachedColumn(int unknown) const {
+    return inverse_columns_.data() +
+           static_cast<size_t>(inverse_column_of_unknown_[unknown]) * num_unknowns();
+  }
+  double ColumnDotTurn(int unknown);
+  double InverseTurnDotTurn();
+
   // The contacts' active set, and the step's response to a unit force at a
   // contact's point for it: A^-1 of the force (cached columns) less A^-1 of
-  // its turn, then as any force.
+  // its turn, then as any force (FinishResponse), kept as that combination.
   ContactActiveSet contacts_;
-  void ResponseOf(const StepContact& contact, const Vec2& direction,
-                  Eigen::Ref<Eigen::VectorXd> out) override;
+  void ResponseOf(const StepContact& contact, const Vec2& direction, StepResponse* out) override;
+  void ResponseValues(const StepResponse& response, std::span<const int> unknowns,
+                      double* out) const override;
+  void AddCombination(std::span<const int> unknowns, std::span<const double> weights,
+                      double inverse_turn, double turn, Eigen::VectorXd& step) const override;
 
   // The rotation K0 leaves free (kFree: about the centroid, kPivot: about
   // the one clamped node, kNone: two or more clamped nodes hold the mesh).
