@@ -1,15 +1,24 @@
 // Speed of the evaluation hot loop on the reference scene (see
 // reference_scene.h): one full evaluation (simulate and score all frames),
 // one substep, and one frame's scoring (rasterise + compare, by the score's
-// coverage rule and by the centre rule it replaced).
+// coverage rule and by the centre rule it replaced); the preparation's
+// mesh registration onto an outline and its nearest-segment queries.
 //
 //   build/bench/calib_bench --benchmark_min_time=1
 
 #include "reference_scene.h"
 
+#include "calib/evaluator/contour.h"
+#include "calib/evaluator/nearest_segment.h"
+#include "calib/evaluator/shape_tracking.h"
+
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <utility>
+#include <vector>
 
 namespace calib::bench {
 namespace {
@@ -149,6 +158,59 @@ BENCHMARK(BM_ScoreFrame)
     ->ArgNames({"coverage", "dented"})
     ->ArgsProduct({{0, 1}, {0, 1}})
     ->Unit(benchmark::kMicrosecond);
+
+// The preparation's registration of a mesh onto an outline (RegisterMesh,
+// as tracking does it for each frame): the reference mesh, its rest shape
+// shifted by (3, -2) px, onto the outline of frame 100 (the finger's dent).
+void BM_RegisterMesh(benchmark::State& state) {
+  const PreparedRecording& prepared = ReferenceScene();
+  const Mesh& mesh = prepared.mesh;
+  const std::vector<uint8_t> free_nodes(mesh.NumNodes(), 0);
+  std::vector<Vec2> start = mesh.rest_positions;
+  for (Vec2& p : start) p += Vec2(3.0, -2.0);
+  for (auto _ : state) {
+    const MeshRegistration registered =
+        RegisterMesh(mesh, free_nodes, start, mesh.rest_positions, prepared.object_masks[100]);
+    benchmark::DoNotOptimize(registered.outline_distance_px);
+  }
+}
+BENCHMARK(BM_RegisterMesh)->Unit(benchmark::kMillisecond);
+
+// Its nearest-point queries, those of the mesh's outline term: frame 100's
+// outline sampled every pixel against the mesh's boundary segments (rest
+// shape shifted as above), by the grid (grid:1) or by scanning every
+// segment (grid:0), the same answers.
+void BM_NearestSegment(benchmark::State& state) {
+  const PreparedRecording& prepared = ReferenceScene();
+  const Mesh& mesh = prepared.mesh;
+  std::vector<std::pair<Vec2, Vec2>> segments;
+  for (const std::vector<int>& loop : mesh.boundary_loops) {
+    for (size_t k = 0; k < loop.size(); ++k) {
+      segments.emplace_back(mesh.rest_positions[loop[k]] + Vec2(3.0, -2.0),
+                            mesh.rest_positions[loop[(k + 1) % loop.size()]] + Vec2(3.0, -2.0));
+    }
+  }
+  NearestSegment index;
+  index.Build(static_cast<int>(segments.size()), [&](int k) { return segments[k]; });
+  const std::vector<Vec2> outline = ObjectOutline(prepared.object_masks[100], 0.5);
+  std::vector<Vec2> queries;
+  for (size_t k = 0; k < outline.size(); ++k) {
+    const Vec2 a = outline[k], b = outline[(k + 1) % outline.size()];
+    const int pieces = std::max(1, static_cast<int>(std::ceil((b - a).norm())));
+    for (int p = 0; p < pieces; ++p) queries.push_back(a + (b - a) * (static_cast<double>(p) / pieces));
+  }
+  const bool grid = state.range(0) != 0;
+  for (auto _ : state) {
+    double sum = 0.0;
+    for (const Vec2& p : queries) {
+      sum += (grid ? index.Nearest(p) : index.NearestByScan(p)).distance2;
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["segments"] = index.size();
+  state.counters["queries"] = static_cast<double>(queries.size());
+}
+BENCHMARK(BM_NearestSegment)->ArgName("grid")->DenseRange(0, 1)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace calib::bench

@@ -1,6 +1,7 @@
 #include "calib/evaluator/shape_tracking.h"
 
 #include "calib/evaluator/contour.h"
+#include "calib/evaluator/nearest_segment.h"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
@@ -28,21 +29,6 @@ constexpr double kCycleHysteresisPx = 0.5;
 // The rest shape is fitted against the motion over at least this many
 // whole cycles (an intercept and a slope, and one more to check them).
 constexpr int kMinRestCycles = 3;
-
-struct SegmentPoint {
-  double distance2 = std::numeric_limits<double>::infinity();
-  int segment = -1;
-  double share = 0.0;  // 0 at the segment's first end, 1 at its second
-  Vec2 point = Vec2::Zero();
-};
-
-// The point of segment [a, b] nearest p, as the share along it.
-double NearestShare(const Vec2& a, const Vec2& b, const Vec2& p) {
-  const Vec2 d = b - a;
-  const double length2 = d.squaredNorm();
-  if (length2 <= 0.0) return 0.0;
-  return std::clamp((p - a).dot(d) / length2, 0.0, 1.0);
-}
 
 // The rotation R maximising sum_e e^T R E over the triangle's three edges
 // (E at frame 0, e now): the local step of as-rigid-as-possible.
@@ -83,10 +69,10 @@ class Tracker {
     SampleOutline(outline);
     double distance = 0.0;
     for (int iteration = 0; iteration < options_.max_iterations; ++iteration) {
-      const double moved = Step(outline, x);
+      const double moved = Step(x);
       if (moved <= options_.tolerance_px) break;
     }
-    for (int b : boundary_nodes_) distance += std::sqrt(NearestOnOutline(outline, x[b]).distance2);
+    for (int b : boundary_nodes_) distance += std::sqrt(NearestOnOutline(x[b]).distance2);
     return boundary_nodes_.empty() ? 0.0 : distance / static_cast<double>(boundary_nodes_.size());
   }
 
@@ -99,36 +85,16 @@ class Tracker {
       const int pieces = std::max(1, static_cast<int>(std::ceil((b - a).norm() / options_.sample_spacing_px)));
       for (int p = 0; p < pieces; ++p) samples_.push_back(a + (b - a) * (static_cast<double>(p) / pieces));
     }
+    outline_segments_.Build(static_cast<int>(outline.size()), [&](int k) {
+      return std::pair(outline[k], outline[(k + 1) % outline.size()]);
+    });
   }
 
-  SegmentPoint NearestOnOutline(const std::vector<Vec2>& outline, const Vec2& p) const {
-    SegmentPoint best;
-    for (size_t k = 0; k < outline.size(); ++k) {
-      const Vec2& a = outline[k];
-      const Vec2& b = outline[(k + 1) % outline.size()];
-      const double s = NearestShare(a, b, p);
-      const Vec2 q = a + s * (b - a);
-      const double d2 = (q - p).squaredNorm();
-      if (d2 < best.distance2) best = {d2, static_cast<int>(k), s, q};
-    }
-    return best;
-  }
-
-  SegmentPoint NearestOnMesh(const std::vector<Vec2>& x, const Vec2& p) const {
-    SegmentPoint best;
-    for (size_t k = 0; k < boundary_segments_.size(); ++k) {
-      const Vec2& a = x[boundary_segments_[k][0]];
-      const Vec2& b = x[boundary_segments_[k][1]];
-      const double s = NearestShare(a, b, p);
-      const Vec2 q = a + s * (b - a);
-      const double d2 = (q - p).squaredNorm();
-      if (d2 < best.distance2) best = {d2, static_cast<int>(k), s, q};
-    }
-    return best;
-  }
+  // The point of the outline SampleOutline was given nearest p.
+  SegmentPoint NearestOnOutline(const Vec2& p) const { return outline_segments_.Nearest(p); }
 
   // One local/global alternation; returns the largest node move, px.
-  double Step(const std::vector<Vec2>& outline, std::vector<Vec2>& x) {
+  double Step(std::vector<Vec2>& x) {
     triplets_.clear();
     rhs_.setZero(num_unknowns_, 2);
     // Adds weight * (sum_k c_k x_{n_k} - target)^2 for up to two nodes.
@@ -165,14 +131,17 @@ class Tracker {
     if (!boundary_nodes_.empty()) {
       const double weight = scale / static_cast<double>(boundary_nodes_.size());
       for (int b : boundary_nodes_) {
-        add_point_term({b, -1}, {1.0, 0.0}, NearestOnOutline(outline, x[b]).point, weight);
+        add_point_term({b, -1}, {1.0, 0.0}, NearestOnOutline(x[b]).point, weight);
       }
     }
     // The mesh's outline onto every outline sample.
     if (!samples_.empty()) {
       const double weight = scale / static_cast<double>(samples_.size());
+      mesh_segments_.Build(static_cast<int>(boundary_segments_.size()), [&](int k) {
+        return std::pair(x[boundary_segments_[k][0]], x[boundary_segments_[k][1]]);
+      });
       for (const Vec2& s : samples_) {
-        const SegmentPoint q = NearestOnMesh(x, s);
+        const SegmentPoint q = mesh_segments_.Nearest(s);
         const std::array<int, 2>& seg = boundary_segments_[q.segment];
         add_point_term(seg, {1.0 - q.share, q.share}, s, weight);
       }
@@ -205,6 +174,8 @@ class Tracker {
   std::vector<std::array<int, 2>> boundary_segments_;
   std::vector<int> boundary_nodes_;  // boundary nodes that are not clamped
   std::vector<Vec2> samples_;
+  NearestSegment outline_segments_;  // the outline's, as SampleOutline last had it
+  NearestSegment mesh_segments_;     // the mesh boundary's, at this Step's positions
   std::vector<Eigen::Triplet<double>> triplets_;
   Eigen::MatrixXd rhs_;
   Eigen::SparseMatrix<double> matrix_;
