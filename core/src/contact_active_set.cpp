@@ -27,11 +27,9 @@ ContactActiveSet::ContactActiveSet(std::span<const int> unknown_of_coordinate, i
   combination_weights_.reserve(4 * kMaxRows);
 }
 
-double ContactActiveSet::Along(const StepContact& contact, const Vec2& direction,
-                               const Eigen::VectorXd& dx) const {
+double ContactActiveSet::Along(const ContactTerms& terms, const Eigen::VectorXd& dx) const {
   double along = 0.0;
-  ForEachContactUnknown(contact, direction, unknown_of_coordinate_,
-                        [&](int k, double g) { along += g * dx[k]; });
+  for (int q = 0; q < terms.count; ++q) along += terms.g[q] * dx[terms.unknown[q]];
   return along;
 }
 
@@ -54,6 +52,22 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
     });
   }
   const size_t num_local = local_unknowns_.size();
+  // Each contact's coordinates along its normal and its tangent, once.
+  terms_.resize(2 * contacts.size());
+  for (size_t j = 0; j < contacts.size(); ++j) {
+    const StepContact& c = contacts[j];
+    for (const int side : {0, 1}) {
+      ContactTerms& terms = terms_[2 * j + side];
+      terms.count = 0;
+      ForEachContactUnknown(c, side == 0 ? c.normal : Tangent(c.normal), unknown_of_coordinate_,
+                            [&](int k, double g) {
+                              terms.unknown[terms.count] = k;
+                              terms.local[terms.count] = local_of_unknown_[k];
+                              terms.g[terms.count] = g;
+                              ++terms.count;
+                            });
+    }
+  }
   active_.clear();
   active_of_contact_.assign(num_contacts, -1);
   excluded_.assign(num_contacts, 0);
@@ -81,7 +95,7 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
       if (active_of_contact_[j] >= 0 || excluded_[j] != 0) continue;
       if (static_cast<int>(active_.size()) == kMaxActiveContacts) break;
       const StepContact& c = contacts[j];
-      if (!(StepAlong(c, c.normal, free_step) - c.gap < -kContactTolerancePx)) continue;
+      if (!(StepAlong(terms_[2 * j], free_step) - c.gap < -kContactTolerancePx)) continue;
       const int a = static_cast<int>(active_.size());
       active_.push_back(ActiveContact{j, friction > 0.0, 0.0, 0.0, 0.0});
       active_of_contact_[j] = a;
@@ -117,9 +131,8 @@ const Eigen::VectorXd& ContactActiveSet::Solve(std::span<const StepContact> cont
           a.stick = false;
           a.slip_sign = a.tangent_force > 0.0 ? 1.0 : -1.0;
           changed = true;
-        } else if (!a.stick &&
-                   a.slip_sign * (StepAlong(c, Tangent(c.normal), free_step) - tangent_target(c)) >
-                       kContactTolerancePx) {
+        } else if (!a.stick && a.slip_sign * (StepAlong(terms_[2 * a.contact + 1], free_step) -
+                                              tangent_target(c)) > kContactTolerancePx) {
           a.stick = true;  // it would slide the way its friction pushes
           changed = true;
         }
@@ -178,21 +191,21 @@ void ContactActiveSet::AddToCombination(const StepResponse& response, double wei
   combination_turn_ += weight * response.turn;
 }
 
-double ContactActiveSet::ColumnAt(int u, int k) const {
+double ContactActiveSet::ColumnAt(int u, int local) const {
   const Row& row = rows_[u];
-  const size_t at = row.response * local_unknowns_.size() + local_of_unknown_[k];
+  const size_t at = row.response * local_unknowns_.size() + local;
   if (row.slides) return normal_values_[at] + row.slip * tangent_values_[at];
   return row.tangent ? tangent_values_[at] : normal_values_[at];
 }
 
-double ContactActiveSet::StepAlong(const StepContact& contact, const Vec2& direction,
+double ContactActiveSet::StepAlong(const ContactTerms& terms,
                                    const Eigen::VectorXd& free_step) const {
   double along = 0.0;
-  ForEachContactUnknown(contact, direction, unknown_of_coordinate_, [&](int k, double g) {
-    double step = free_step[k];
-    for (int u = 0; u < num_rows_; ++u) step += forces_[u] * ColumnAt(u, k);
-    along += g * step;
-  });
+  for (int q = 0; q < terms.count; ++q) {
+    double step = free_step[terms.unknown[q]];
+    for (int u = 0; u < num_rows_; ++u) step += forces_[u] * ColumnAt(u, terms.local[q]);
+    along += terms.g[q] * step;
+  }
   return along;
 }
 
@@ -219,26 +232,26 @@ bool ContactActiveSet::SolveActive(std::span<const StepContact> contacts, double
   system_.resize(rows, rows);
   system_rhs_.resize(rows);
   for (int a = 0; a < k; ++a) {
-    const StepContact& c = contacts[active_[a].contact];
-    system_rhs_[a] = c.gap - Along(c, c.normal, free_step);
+    const int j = active_[a].contact;
+    const StepContact& c = contacts[j];
+    system_rhs_[a] = c.gap - Along(terms_[2 * j], free_step);
     if (tangent_row_[a] >= 0) {
       const Vec2 t = Tangent(c.normal);
-      system_rhs_[tangent_row_[a]] = t.dot(c.obstacle_step) - Along(c, t, free_step);
+      system_rhs_[tangent_row_[a]] = t.dot(c.obstacle_step) - Along(terms_[2 * j + 1], free_step);
     }
   }
   // Each column's entries at the contacts' own unknowns: all the system
   // reads of the m-long column.
   for (int u = 0; u < rows; ++u) {
-    const auto along = [&](const StepContact& c, const Vec2& direction) {
+    const auto along = [&](const ContactTerms& terms) {
       double sum = 0.0;
-      ForEachContactUnknown(c, direction, unknown_of_coordinate_,
-                            [&](int unknown, double g) { sum += g * ColumnAt(u, unknown); });
+      for (int q = 0; q < terms.count; ++q) sum += terms.g[q] * ColumnAt(u, terms.local[q]);
       return sum;
     };
     for (int a = 0; a < k; ++a) {
-      const StepContact& c = contacts[active_[a].contact];
-      system_(a, u) = along(c, c.normal);
-      if (tangent_row_[a] >= 0) system_(tangent_row_[a], u) = along(c, Tangent(c.normal));
+      const int j = active_[a].contact;
+      system_(a, u) = along(terms_[2 * j]);
+      if (tangent_row_[a] >= 0) system_(tangent_row_[a], u) = along(terms_[2 * j + 1]);
     }
   }
   lu_.compute(system_);

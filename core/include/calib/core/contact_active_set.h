@@ -157,12 +157,21 @@ class ContactActiveSet {
   // (StepAlong), and Solve forms it whole once, at its end.
   bool SolveActive(std::span<const StepContact> contacts, double friction,
                    const Eigen::VectorXd& free_step);
-  double ColumnAt(int row, int unknown) const;
+  // A contact's point along a direction: its unknowns (ForEachContactUnknown's,
+  // in its order), their places among local_unknowns_ and their weights.
+  struct ContactTerms {
+    int count = 0;
+    std::array<int, 4> unknown{}, local{};
+    std::array<double, 4> g{};
+  };
+  std::vector<ContactTerms> terms_;  // contact j's: [2 j] its normal, [2 j + 1] its tangent
+  // Row `row`'s column at the local unknown `local`.
+  double ColumnAt(int row, int local) const;
   // Along, of the step of the last successful SolveActive.
-  double StepAlong(const StepContact& contact, const Vec2& direction,
-                   const Eigen::VectorXd& free_step) const;
-  // The motion of `contact`'s point along `direction` under the step dx.
-  double Along(const StepContact& contact, const Vec2& direction, const Eigen::VectorXd& dx) const;
+  double StepAlong(const ContactTerms& terms, const Eigen::VectorXd& free_step) const;
+  // The motion of a contact's point along a direction (its terms) under
+  // the step dx.
+  double Along(const ContactTerms& terms, const Eigen::VectorXd& dx) const;
 };
 
 }  // namespace calib
