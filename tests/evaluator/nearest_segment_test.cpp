@@ -126,9 +126,20 @@ TEST(NearestSegment, NoSegmentsNonFiniteEndsAndQueriesAreTheScansAnswer) {
   for (const Vec2& p : {Vec2(3e200, 0.5), Vec2(-1, 0)}) {
     ExpectSame(far_flung.Nearest(p), far_flung.NearestByScan(p), p);
   }
-  const NearestSegment square = FromPolygon({Vec2(0, 0), Vec2(10, 0), Vec2(10, 10)});
-  const Vec2 nan_query(nan, 1.0);
-  EXPECT_EQ(square.Nearest(nan_query).segment, square.NearestByScan(nan_query).segment);
+  // A query that is not finite, against a set large enough for a grid (a
+  // 40-gon) and against one that is scanned (a triangle).
+  std::vector<Vec2> polygon;
+  for (int k = 0; k < 40; ++k) {
+    const double t = 2.0 * std::numbers::pi * k / 40.0;
+    polygon.emplace_back(50.0 * std::cos(t), 50.0 * std::sin(t));
+  }
+  const NearestSegment gridded = FromPolygon(polygon);
+  const NearestSegment triangle = FromPolygon({Vec2(0, 0), Vec2(10, 0), Vec2(10, 10)});
+  for (const Vec2& query : {Vec2(nan, 1.0), Vec2(1.0, std::numeric_limits<double>::infinity())}) {
+    for (const NearestSegment* index : {&gridded, &triangle}) {
+      EXPECT_EQ(index->Nearest(query).segment, index->NearestByScan(query).segment);
+    }
+  }
 }
 
 }  // namespace
