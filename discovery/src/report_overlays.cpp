@@ -26,7 +26,7 @@ OverlayCapture::OverlayCapture(const PreparedRecording& prepared, std::vector<in
   }
   std::sort(frames_.begin(), frames_.end());
   recording_ = RecordingDisplayName(prepared.recording.folder);
-  if (!frames_.empty() && !video_.open(prepared.recording.video_path.string())) {
+  if (!frames_.empty() && !video_.Open(prepared.recording.video_path)) {
     throw RecordingError(
         fmt::format("{}: cannot open video", prepared.recording.video_path.string()));
   }
@@ -42,14 +42,14 @@ void OverlayCapture::operator()(int frame, const Simulator& simulator, const Bit
   ++next_frame_;
   const bool wanted = std::binary_search(frames_.begin(), frames_.end(), frame);
   if (!wanted) {
-    if (!video_.grab()) {
+    if (!video_.Grab()) {
       throw RecordingError(fmt::format("{}: cannot decode frame {}",
                                        prepared_.recording.video_path.string(), frame));
     }
     return;
   }
   cv::Mat image;
-  if (!video_.read(image)) {
+  if (!video_.Read(image)) {
     throw RecordingError(fmt::format("{}: cannot decode frame {}",
                                      prepared_.recording.video_path.string(), frame));
   }

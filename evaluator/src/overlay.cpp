@@ -1,7 +1,6 @@
 #include "calib/evaluator/overlay.h"
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -189,7 +188,7 @@ void WriteOverlayPng(const std::filesystem::path& path, const cv::Mat& image) {
   bool written = false;
   std::string reason = "cv::imwrite failed (missing folder or no permission?)";
   try {
-    written = cv::imwrite(path.string(), image);
+    written = WriteImage(path, image);
   } catch (const cv::Exception& e) {
     reason = e.what();
   }
@@ -207,9 +206,8 @@ bool OverlayVideoWriter::Open(const std::filesystem::path& path, double fps, cv:
                                             frame_size.width, frame_size.height, path.string()));
   }
   for (const char* codec : {"avc1", "mp4v"}) {
-    const int fourcc = cv::VideoWriter::fourcc(codec[0], codec[1], codec[2], codec[3]);
     try {
-      if (writer_.open(path.string(), fourcc, fps, frame_size, true)) {
+      if (writer_.Open(path, FourCC(codec), fps, frame_size)) {
         path_ = path;
         frame_size_ = frame_size;
         codec_ = codec;
@@ -219,26 +217,26 @@ bool OverlayVideoWriter::Open(const std::filesystem::path& path, double fps, cv:
     } catch (const cv::Exception&) {
       // An encoder missing from this OpenCV build: try the next codec.
     }
-    writer_.release();
+    writer_.Release();
   }
   throw std::runtime_error(
       fmt::format("cannot open video '{}' for writing (tried codecs avc1 and mp4v)", path.string()));
 }
 
 void OverlayVideoWriter::Write(const cv::Mat& image) {
-  if (!writer_.isOpened()) throw std::logic_error("OverlayVideoWriter::Write: no video is open");
+  if (!writer_.IsOpen()) throw std::logic_error("OverlayVideoWriter::Write: no video is open");
   if (image.size() != frame_size_ || image.type() != CV_8UC3) {
     throw std::invalid_argument(fmt::format(
         "OverlayVideoWriter: frame {} for '{}' is {}x{} type {}, expected {}x{} CV_8UC3",
         frames_written_, path_.string(), image.cols, image.rows, image.type(), frame_size_.width,
         frame_size_.height));
   }
-  writer_.write(image);
+  writer_.Write(image);
   ++frames_written_;
 }
 
 void OverlayVideoWriter::Close() {
-  writer_.release();
+  writer_.Release();
   codec_.clear();
 }
 

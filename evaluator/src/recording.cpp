@@ -1,9 +1,10 @@
 #include "calib/evaluator/recording.h"
 
+#include "calib/evaluator/media.h"
+
 #include <csv.h>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <algorithm>
 #include <charconv>
@@ -266,28 +267,28 @@ void ReadVideoInfo(const fs::path& video, Recording* rec) {
   if (!IsImagePattern(video) && !fs::is_regular_file(video)) {
     Fail(video, "video file does not exist");
   }
-  cv::VideoCapture cap(video.string());
-  if (!cap.isOpened()) Fail(video, "cannot open video (cv::VideoCapture)");
-  int width = static_cast<int>(cap.get(cv::CAP_PROP_FRAME_WIDTH));
-  int height = static_cast<int>(cap.get(cv::CAP_PROP_FRAME_HEIGHT));
-  const double stated = cap.get(cv::CAP_PROP_FRAME_COUNT);
+  VideoReader cap(video);
+  if (!cap.IsOpen()) Fail(video, "cannot open video (cv::VideoCapture)");
+  int width = static_cast<int>(cap.StatedWidth());
+  int height = static_cast<int>(cap.StatedHeight());
+  const double stated = cap.StatedFrameCount();
   int count = 0;
   if (stated > 0 && std::isfinite(stated)) {
     count = static_cast<int>(std::llround(stated));
     if (width <= 0 || height <= 0) {
       cv::Mat frame;
-      if (cap.read(frame)) {
+      if (cap.Read(frame)) {
         width = frame.cols;
         height = frame.rows;
       }
     }
   } else {
     cv::Mat frame;
-    if (cap.read(frame)) {
+    if (cap.Read(frame)) {
       width = frame.cols;
       height = frame.rows;
       count = 1;
-      while (cap.grab()) ++count;
+      while (cap.Grab()) ++count;
     }
   }
   if (count <= 0) Fail(video, "video holds no frames");

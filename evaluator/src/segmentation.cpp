@@ -1,11 +1,11 @@
 #include "calib/evaluator/segmentation.h"
 
 #include "calib/evaluator/bit_mask_cv.h"
+#include "calib/evaluator/media.h"
 #include "calib/evaluator/segmentation_cache.h"
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <cctype>
 #include <cstdlib>
@@ -60,15 +60,15 @@ std::optional<std::string> ExpandPattern(const std::string& pattern, int index) 
 
 
 std::vector<BitMask> SegmentVideo(const Recording& rec, const SegmentationOptions& opt) {
-  cv::VideoCapture cap(rec.video_path.string());
-  if (!cap.isOpened()) {
+  VideoReader cap(rec.video_path);
+  if (!cap.IsOpen()) {
     throw RecordingError(rec.video_path.string() + ": cannot open video (cv::VideoCapture)");
   }
   std::vector<BitMask> masks;
   masks.reserve(rec.num_frames);
   cv::Mat frame;
   for (int f = 0; f < rec.num_frames; ++f) {
-    if (!cap.read(frame) || frame.empty()) {
+    if (!cap.Read(frame) || frame.empty()) {
       throw RecordingError(
           fmt::format("{}: the video yields {} frames but the recording has {} (rows of {})",
                       rec.video_path.string(), f, rec.num_frames, rec.track_path.string()));

@@ -1,10 +1,10 @@
 #include "calib/evaluator/segmentation_preview.h"
 
 #include "calib/evaluator/bit_mask_cv.h"
+#include "calib/evaluator/media.h"
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <algorithm>
 #include <map>
@@ -61,14 +61,14 @@ std::vector<SegmentationPreview> PreviewSegmentation(const Recording& rec,
   }
   std::map<int, SegmentationPreview> wanted;
   for (const int f : frames) wanted[f].frame = f;
-  cv::VideoCapture video(rec.video_path.string());
-  if (!video.isOpened()) {
+  VideoReader video(rec.video_path);
+  if (!video.IsOpen()) {
     throw RecordingError(rec.video_path.string() + ": cannot open video (cv::VideoCapture)");
   }
   const int last = wanted.empty() ? -1 : wanted.rbegin()->first;
   cv::Mat frame;
   for (int f = 0; f <= last; ++f) {
-    if (!video.read(frame) || frame.empty()) {
+    if (!video.Read(frame) || frame.empty()) {
       throw RecordingError(fmt::format("{}: the video ends at frame {}", rec.video_path.string(), f));
     }
     auto it = wanted.find(f);

@@ -2,13 +2,13 @@
 
 #include "calib/core/parameters.h"
 #include "calib/evaluator/mask_geometry.h"
+#include "calib/evaluator/media.h"
 #include "calib/evaluator/overlay.h"
 #include "calib/results/frame_report.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <fstream>
 #include <stdexcept>
@@ -54,12 +54,12 @@ void WriteMeshJson(const std::filesystem::path& path, const PreparedRecording& p
 class FrameReader {
  public:
   explicit FrameReader(const Recording& recording) : path_(recording.video_path.string()) {
-    if (!capture_.open(path_)) {
+    if (!capture_.Open(path_)) {
       throw RecordingError(fmt::format("{}: cannot open video", path_));
     }
   }
   const cv::Mat& Next(int frame) {
-    if (!capture_.read(image_)) {
+    if (!capture_.Read(image_)) {
       throw RecordingError(fmt::format("{}: cannot decode frame {}", path_, frame));
     }
     return image_;
@@ -67,7 +67,7 @@ class FrameReader {
 
  private:
   std::string path_;
-  cv::VideoCapture capture_;
+  VideoReader capture_;
   cv::Mat image_;
 };
 

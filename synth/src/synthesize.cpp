@@ -2,6 +2,7 @@
 
 #include "calib/core/mesher.h"
 #include "calib/evaluator/json_number.h"
+#include "calib/evaluator/media.h"
 #include "calib/synth/renderer.h"
 #include "random.h"
 #include "text_file.h"
@@ -10,7 +11,6 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/videoio.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
@@ -146,17 +146,17 @@ SynthesisSummary Synthesize(const Scenario& s, const fs::path& out_dir, TruthRec
   const fs::path video_path = out_dir / "video.mp4";
   fs::remove(video_path, ec);
   const cv::Size size(s.camera.width_px, s.camera.height_px);
-  cv::VideoWriter writer;
+  VideoWriter writer;
   {
     const ScopedEnv quality("OPENCV_FFMPEG_WRITER_OPTIONS", fmt::format("crf;{}", s.camera.video_crf));
     summary.video_codec = "avc1";
-    writer.open(video_path.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('a', 'v', 'c', '1'), s.fps, size);
-    if (!writer.isOpened()) {
+    writer.Open(video_path, FourCC("avc1"), s.fps, size, VideoWriter::Backend::kFfmpeg);
+    if (!writer.IsOpen()) {
       summary.video_codec = "mp4v";
-      writer.open(video_path.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), s.fps, size);
+      writer.Open(video_path, FourCC("mp4v"), s.fps, size, VideoWriter::Backend::kFfmpeg);
     }
   }
-  if (!writer.isOpened()) throw std::runtime_error(fmt::format("{}: cannot open a video writer", video_path.string()));
+  if (!writer.IsOpen()) throw std::runtime_error(fmt::format("{}: cannot open a video writer", video_path.string()));
   const FrameRenderer renderer(s.camera, scene.rest_mesh, s.seed);
   for (int f = 0; f < s.frames; ++f) {
     std::vector<DrawnDisc> discs;
@@ -164,9 +164,9 @@ SynthesisSummary Synthesize(const Scenario& s, const fs::path& out_dir, TruthRec
       discs.push_back({scene.obstacles[f][1], s.camera.pencil_rgb, 1.0});
       discs.push_back({scene.obstacles[f][0], s.camera.finger_rgb, s.camera.finger_opacity});
     }
-    writer.write(renderer.Render(f, frames[f].positions_px, discs));
+    writer.Write(renderer.Render(f, frames[f].positions_px, discs));
   }
-  writer.release();
+  writer.Release();
   summary.rendering_s = Seconds(render_start);
 
   // track.csv: the obstacles and the sensor's reading.

@@ -4,6 +4,7 @@
 #include "calib/discovery/loop_report.h"
 #include "calib/discovery/report_html.h"
 
+#include "calib/evaluator/media.h"
 #include "calib/evaluator/rasterizer.h"
 #include "support/test_support.h"
 
@@ -12,7 +13,6 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -137,7 +137,7 @@ LoopReport MakeReport(const fs::path& dir) {
 
   fs::create_directories(dir / "overlays");
   cv::Mat image(60, 80, CV_8UC3, cv::Scalar(30, 90, 200));
-  cv::imwrite((dir / "overlays" / "a_base_000012.png").string(), image);
+  WriteImage(dir / "overlays" / "a_base_000012.png", image);
   r.overlays = {{"a", "base", 12, 1060, 0.9, "overlays/a_base_000012.png", "worst frame"}};
   r.notes = {"a note with <html> & \"quotes\""};
   return r;

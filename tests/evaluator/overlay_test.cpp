@@ -1,12 +1,11 @@
 #include "calib/evaluator/overlay.h"
 
+#include "calib/evaluator/media.h"
 #include "calib/evaluator/rasterizer.h"
 #include "calib/evaluator/scoring.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <filesystem>
 #include <stdexcept>
@@ -170,14 +169,14 @@ TEST(OverlayVideoWriter, WritesAnMp4ThatReopensWithAllFrames) {
 
   ASSERT_TRUE(std::filesystem::exists(path));
   EXPECT_GT(std::filesystem::file_size(path), 0u);
-  cv::VideoCapture capture(path.string());
-  ASSERT_TRUE(capture.isOpened()) << path;
-  EXPECT_EQ(static_cast<int>(capture.get(cv::CAP_PROP_FRAME_WIDTH)), 2 * kWidth);
-  EXPECT_EQ(static_cast<int>(capture.get(cv::CAP_PROP_FRAME_HEIGHT)), 2 * kHeight);
-  EXPECT_EQ(static_cast<int>(capture.get(cv::CAP_PROP_FRAME_COUNT)), kFrames);
+  VideoReader capture(path);
+  ASSERT_TRUE(capture.IsOpen()) << path;
+  EXPECT_EQ(static_cast<int>(capture.StatedWidth()), 2 * kWidth);
+  EXPECT_EQ(static_cast<int>(capture.StatedHeight()), 2 * kHeight);
+  EXPECT_EQ(static_cast<int>(capture.StatedFrameCount()), kFrames);
   int decoded = 0;
   cv::Mat image;
-  while (capture.read(image)) ++decoded;
+  while (capture.Read(image)) ++decoded;
   EXPECT_EQ(decoded, kFrames);
 }
 
@@ -198,7 +197,7 @@ TEST(WriteOverlayPng, RoundTripsLosslessly) {
   const auto path = testing::ScratchDir("overlay_png") / "panel.png";
   const cv::Mat image = GradientFrame();
   WriteOverlayPng(path, image);
-  const cv::Mat back = cv::imread(path.string(), cv::IMREAD_COLOR);
+  const cv::Mat back = ReadImage(path, ImageMode::kColour);
   ASSERT_EQ(back.size(), image.size());
   EXPECT_EQ(cv::norm(back, image, cv::NORM_INF), 0.0);
 }

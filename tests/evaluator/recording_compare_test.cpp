@@ -1,11 +1,11 @@
 #include "calib/evaluator/recording_compare.h"
 
+#include "calib/evaluator/media.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -39,7 +39,7 @@ fs::path WriteTake(const std::string& name, const Take& take) {
     cv::circle(frame, cv::Point(x, take.height / 2), 12, cv::Scalar(40, 200, 220), cv::FILLED);
     char file[32];
     std::snprintf(file, sizeof(file), "%06d.png", i);
-    EXPECT_TRUE(cv::imwrite((dir / "frames" / file).string(), frame));
+    EXPECT_TRUE(WriteImage(dir / "frames" / file, frame));
     track += std::to_string(i) + "\n";
   }
   nlohmann::json doc = {{"format", "sponge-recording/1"},

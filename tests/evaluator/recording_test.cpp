@@ -1,14 +1,13 @@
 #include "calib/evaluator/recording.h"
 
+#include "calib/evaluator/media.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <cstdio>
 #include <filesystem>
@@ -32,10 +31,9 @@ cv::Mat SyntheticFrame(int index) {
 }
 
 void WriteAviVideo(const fs::path& file, int frames) {
-  cv::VideoWriter writer(file.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 30.0,
-                         cv::Size(kWidth, kHeight));
-  ASSERT_TRUE(writer.isOpened()) << file;
-  for (int i = 0; i < frames; ++i) writer.write(SyntheticFrame(i));
+  VideoWriter writer;
+  ASSERT_TRUE(writer.Open(file, FourCC("MJPG"), 30.0, cv::Size(kWidth, kHeight))) << file;
+  for (int i = 0; i < frames; ++i) writer.Write(SyntheticFrame(i));
 }
 
 void WritePngSequence(const fs::path& folder, int frames) {
@@ -43,7 +41,7 @@ void WritePngSequence(const fs::path& folder, int frames) {
   for (int i = 0; i < frames; ++i) {
     char name[32];
     std::snprintf(name, sizeof(name), "%06d.png", i);
-    ASSERT_TRUE(cv::imwrite((folder / name).string(), SyntheticFrame(i)));
+    ASSERT_TRUE(WriteImage(folder / name, SyntheticFrame(i)));
   }
 }
 

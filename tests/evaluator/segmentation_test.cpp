@@ -1,11 +1,11 @@
 #include "calib/evaluator/segmentation.h"
 
 #include "calib/evaluator/bit_mask_cv.h"
+#include "calib/evaluator/media.h"
 #include "calib/evaluator/segmentation_cache.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <bit>
@@ -232,7 +232,7 @@ Recording WriteSequenceRecording(const fs::path& dir) {
     const MaskScene scene = Render(BlobTruth({200, 150}, {80 + 8 * i, 75}, 45), cv::Mat(), 11 + i);
     char name[32];
     std::snprintf(name, sizeof(name), "%06d.png", i);
-    EXPECT_TRUE(cv::imwrite((dir / "frames" / name).string(), scene.bgr));
+    EXPECT_TRUE(WriteImage(dir / "frames" / name, scene.bgr));
     track += std::to_string(i) + "\n";
   }
   std::ofstream(dir / "track.csv") << track;
@@ -259,7 +259,7 @@ TEST(SegmentRecording, MatchesSegmentFramePerFrame) {
   for (int i = 0; i < kFrames; ++i) {
     char name[32];
     std::snprintf(name, sizeof(name), "%06d.png", i);
-    const cv::Mat frame = cv::imread((dir / "rec" / "frames" / name).string());
+    const cv::Mat frame = ReadImage(dir / "rec" / "frames" / name);
     EXPECT_EQ(masks[i], SegmentFrame(frame, rec.object_hsv, rec.roi, opt)) << "frame " << i;
     EXPECT_GT(masks[i].Count(), 1000) << "frame " << i;
   }
@@ -354,7 +354,7 @@ TEST(SegmentRecording, CacheKeyFollowsContentAndOptions) {
   const fs::path cache = dir / "cache";
   SegmentRecording(rec, opt, cache);
   const cv::Mat blank(150, 200, CV_8UC3, kBackgroundBgr);
-  ASSERT_TRUE(cv::imwrite((dir / "rec" / "frames" / "000003.png").string(), blank));
+  ASSERT_TRUE(WriteImage(dir / "rec" / "frames" / "000003.png", blank));
   EXPECT_NE(SegmentationCacheKey(rec, opt), key);
   EXPECT_EQ(SegmentRecording(rec, opt, cache)[3].Count(), 0);
   EXPECT_EQ(CacheFiles(cache).size(), 2u);
@@ -370,8 +370,8 @@ TEST(SegmentRecording, CacheKeyCoversSequencesStartingAtOne) {
     fs::rename(dir / "rec" / "frames" / from, dir / "rec" / "frames" / to);
   }
   const uint64_t key = SegmentationCacheKey(rec, {});
-  ASSERT_TRUE(cv::imwrite((dir / "rec" / "frames" / "000005.png").string(),
-                          cv::Mat(150, 200, CV_8UC3, kBackgroundBgr)));
+  ASSERT_TRUE(WriteImage(dir / "rec" / "frames" / "000005.png",
+                         cv::Mat(150, 200, CV_8UC3, kBackgroundBgr)));
   EXPECT_NE(SegmentationCacheKey(rec, {}), key) << "the last frame is not part of the key";
 }
 

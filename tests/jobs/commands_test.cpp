@@ -4,12 +4,12 @@
 
 #include "calib/jobs/commands.h"
 
+#include "calib/evaluator/media.h"
 #include "support/csv_support.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <fstream>
 #include <sstream>
@@ -64,9 +64,9 @@ TEST(Commands, SimulateWritesReportsThatAgreeWithScore) {
   EXPECT_NEAR(std::stod(rows[1][7]), std::stod(rows[1][9]), 1.0);
   EXPECT_NEAR(std::stod(rows[1][8]), std::stod(rows[1][10]), 1.0);
 
-  cv::VideoCapture video(summary.overlay_video.string());
-  ASSERT_TRUE(video.isOpened());
-  EXPECT_EQ(static_cast<int>(video.get(cv::CAP_PROP_FRAME_COUNT)), 330);
+  VideoReader video(summary.overlay_video);
+  ASSERT_TRUE(video.IsOpen());
+  EXPECT_EQ(static_cast<int>(video.StatedFrameCount()), 330);
   EXPECT_EQ(summary.overlay_pngs.size(), 3u);  // frames 0, 150 and the worst
 
   // Scoring alone gives the same bits (and reads the segmentation cache).

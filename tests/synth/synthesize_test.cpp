@@ -5,6 +5,7 @@
 
 #include "calib/synth/synthesize.h"
 
+#include "calib/evaluator/media.h"
 #include "calib/evaluator/rasterizer.h"
 #include "calib/evaluator/recording.h"
 #include "calib/evaluator/segmentation.h"
@@ -15,7 +16,6 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -67,13 +67,13 @@ TEST(Synthesize, PushRoundTrip) {
 
   // Segment every decoded frame with the recording's HSV range and compare
   // with the truth mask, leaving out pixels within 4 px of the finger disc.
-  cv::VideoCapture video(rec.video_path.string());
-  ASSERT_TRUE(video.isOpened());
+  VideoReader video(rec.video_path);
+  ASSERT_TRUE(video.IsOpen());
   Rasterizer rasterizer;
   BitMask truth_mask(640, 480);
   cv::Mat frame;
   int decoded = 0;
-  while (video.read(frame)) {
+  while (video.Read(frame)) {
     ASSERT_LT(decoded, 12);
     const BitMask seg = SegmentFrame(frame, rec.object_hsv, rec.roi, SegmentationOptions{});
     rasterizer.RasterizeTriangles(truth.rest_mesh, truth.frames[decoded].positions_px, truth_mask);

@@ -13,9 +13,8 @@
 
 #include "calib/core/simulator.h"
 #include "calib/evaluator/evaluation.h"
+#include "calib/evaluator/media.h"
 #include "calib/discovery/loop_report.h"
-
-#include <opencv2/videoio.hpp>
 
 #include <filesystem>
 #include <string>
@@ -46,7 +45,7 @@ class OverlayCapture {
   std::string stage_;
   std::string recording_;
   double scale_;
-  cv::VideoCapture video_;
+  VideoReader video_;
   int next_frame_ = 0;
   std::vector<ReportOverlay> overlays_;
 };

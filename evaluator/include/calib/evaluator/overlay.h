@@ -14,9 +14,9 @@
 
 #include "calib/core/mesh.h"
 #include "calib/evaluator/bit_mask.h"
+#include "calib/evaluator/media.h"
 
 #include <opencv2/core.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -78,13 +78,13 @@ class OverlayVideoWriter {
   /// Finishes the file; also done by the destructor and by a new Open.
   void Close();
 
-  bool is_open() const { return writer_.isOpened(); }
+  bool is_open() const { return writer_.IsOpen(); }
   /// The codec in use ("avc1" or "mp4v"); empty when not open.
   const std::string& codec() const { return codec_; }
   int frames_written() const { return frames_written_; }
 
  private:
-  cv::VideoWriter writer_;
+  VideoWriter writer_;
   std::filesystem::path path_;
   cv::Size frame_size_;
   std::string codec_;
