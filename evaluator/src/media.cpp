@@ -28,7 +28,9 @@ std::vector<fs::path> MediaModuleCandidates() {
   std::vector<fs::path> candidates;
   std::error_code ec;
   const fs::path program = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) candidates.push_back(program.parent_path().parent_path() / "lib" / "calib" / kMediaModuleFile);
+  if (!ec) {
+    candidates.push_back(program.parent_path().parent_path() / "lib" / "calib" / kMediaModuleFile);
+  }
   const fs::path built(CALIB_MEDIA_MODULE_BUILD_PATH);
   if (candidates.empty() || candidates.front() != built) candidates.push_back(built);
   return candidates;
@@ -70,8 +72,6 @@ const EntryPoints& MediaEntryPoints() {
 }
 
 }  // namespace
-
-void LoadMediaModule() { MediaEntryPoints(); }
 
 VideoReader::VideoReader() = default;
 VideoReader::VideoReader(const fs::path& path) { Open(path); }

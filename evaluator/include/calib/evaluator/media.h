@@ -42,9 +42,6 @@ class MediaModuleError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Loads the module now (a no-op once loaded). Throws MediaModuleError.
-void LoadMediaModule();
-
 /// The four-character code of a codec, as cv::VideoWriter::fourcc makes it.
 constexpr int FourCC(std::string_view code) {
   return (code.size() == 4)
