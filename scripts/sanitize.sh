@@ -76,8 +76,9 @@ case "$kind" in
     # are cores. Allocation stacks are unwound the fast way (frame pointers),
     # which is 3 to 6 times quicker, except where the leak suppressions must
     # see frames of libraries that have none: the MPI tests (Open MPI), and
-    # the recording tests, whose unreadable video makes OpenCV try its
-    # GStreamer and camera backends (scripts/lsan.supp).
+    # the recording and media tests (evaluator_recording_test), whose
+    # missing and unreadable videos make OpenCV try its GStreamer and camera
+    # backends (scripts/lsan.supp).
     logs="$root/$build/sanitize-logs"
     rm -rf "$logs"
     mkdir -p "$logs"

@@ -1,39 +1,17 @@
 #pragma once
 // Counts the heap allocations of a test program, for tests that a hot path
-// allocates nothing in steady state. Replaces the global operator new:
-// include this header in exactly one source file of the test program.
+// allocates nothing in steady state. A program that includes this header
+// compiles support/allocation_counter.cpp too (tests/CMakeLists.txt), which
+// replaces the global operator new for the whole program.
 
 #include <atomic>
 #include <cstdint>
-#include <cstdlib>
-#include <new>
 
 namespace calib::testing {
 
 /// Allocations through the global operator new since the program started.
-inline std::atomic<int64_t> g_allocations{0};
+extern std::atomic<int64_t> g_allocations;
 
 inline int64_t Allocations() { return g_allocations.load(); }
 
 }  // namespace calib::testing
-
-// GCC pairs the inlined free() below with `new` expressions elsewhere and
-// warns of a mismatch; malloc/free are the matching pair here.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t size) {
-  ++calib::testing::g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-// The nothrow forms too (std::stable_sort's buffer uses them): else, where a
-// sanitizer's runtime defines every form, its nothrow new would pair with
-// the free() below (AddressSanitizer: alloc-dealloc-mismatch).
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  ++calib::testing::g_allocations;
-  return std::malloc(size == 0 ? 1 : size);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
-#pragma GCC diagnostic pop
