@@ -251,6 +251,10 @@ int ProjectBoundaryOutOfDiscs(const Mesh& mesh, std::span<const Disc> discs,
       const size_t m = loop.size();
       for (size_t k = 0; k < m; ++k) {
         const int a = loop[k], b = loop[(k + 1) % m];
+        // With the centre outside, an edge is moved only within r of it
+        // (0 < s < inner below): one whose bounding box lies farther (and a
+        // pixel) is skipped without a division.
+        if (!centre_inside && !BoxWithin(x[a], x[b], disc.centre, r + 1.0)) continue;
         // Nearest an end node: ProjectOutOfDiscs' case. s > 0: the centre
         // is in front of the edge, outside.
         EdgePoint nearest;

@@ -223,21 +223,32 @@ template <bool kScaled>
   return num_needing_atan2;
 }
 
-// Pass (4): forces[n] = +0 + contribution[list[start[n]]] + ... in list
-// order, per (x, y) pair.
-[[gnu::always_inline]] inline void NodePass(int num_nodes, const int* __restrict start,
-                                            const int* __restrict list,
+// Pass (4): forces[n] = +0 + contribution[pair 0] + contribution[pair 1] +
+// ... in its list's order, per (x, y) pair, kNodeGroup nodes side by side:
+// their chains of additions are independent, so the CPU overlaps them. A
+// list shorter than its group's is padded with the zero pair: x + (+0) is x
+// for every sum here (one that starts at +0 is never -0).
+[[gnu::always_inline]] inline void NodePass(int num_groups, const int* __restrict group_start,
+                                            const int* __restrict group_nodes,
+                                            const int* __restrict group_pairs,
                                             const double* __restrict contribution,
                                             double* __restrict forces) {
-  for (int n = 0; n < num_nodes; ++n) {
-    double sx = 0.0, sy = 0.0;
-    for (int c = start[n], end = start[n + 1]; c < end; ++c) {
-      const int k = list[c];
-      sx += contribution[2 * k];
-      sy += contribution[2 * k + 1];
+  for (int g = 0; g < num_groups; ++g) {
+    double sx[kNodeGroup], sy[kNodeGroup];
+    for (int j = 0; j < kNodeGroup; ++j) sx[j] = sy[j] = 0.0;
+    for (int p = group_start[g], end = group_start[g + 1]; p < end; p += kNodeGroup) {
+      for (int j = 0; j < kNodeGroup; ++j) {
+        const int k = group_pairs[p + j];
+        sx[j] += contribution[2 * k];
+        sy[j] += contribution[2 * k + 1];
+      }
     }
-    forces[2 * n] = sx;
-    forces[2 * n + 1] = sy;
+    for (int j = 0; j < kNodeGroup; ++j) {
+      const int n = group_nodes[kNodeGroup * g + j];
+      if (n < 0) continue;
+      forces[2 * n] = sx[j];
+      forces[2 * n + 1] = sy[j];
+    }
   }
 }
 
@@ -304,9 +315,9 @@ template <bool kScaled>
   // (4) Into the nodes: each node's forces summed from +0 in the order of
   // the plain scatter (edges, then triangles, each in index order), as
   // (x, y) pairs. The scatter's f_i -= f is here f_i + (-f): the same IEEE
-  // operation (for finite values; a NaN's sign may differ). Nodes are
-  // independent chains, which the CPU overlaps.
-  NodePass(m.num_nodes, m.node_contribution_start, m.node_contribution,
+  // operation (for finite values; a NaN's sign may differ). Four nodes at a
+  // time, as independent chains.
+  NodePass(m.num_node_groups, m.node_group_start, m.node_group_nodes, m.node_group_pairs,
            ws.contribution.data(), forces);
 
   // (5) Energy.

@@ -8,8 +8,8 @@
 // pass redoes the rare triangles whose angles are outside the series' range
 // with std::atan2; (4) a node pass sums each node's forces from a list of
 // them kept in the order of the plain scatter (edges then triangles, each in
-// index order, a subtraction x - f as the identical x + (-f)), so the sums
-// are those of the sequential scatter bit for bit; (5) the energies are
+// index order, a subtraction x - f as the identical x + (-f)), four nodes
+// side by side, so the sums are those of the sequential scatter bit for bit; (5) the energies are
 // summed in eight fixed interleaved partial sums.
 //
 // Every step is the same sequence of IEEE operations per element whatever
@@ -52,12 +52,22 @@ struct Arrays {
   const double* triangle_scale = nullptr;
   const double* angle_scale = nullptr;
 
-  int num_nodes = 0;
-  const int* node_contribution_start = nullptr;  ///< #N + 1
-  const int* node_contribution = nullptr;        ///< pair indices of workspace->contribution
+  /// The node pass's groups (Model::node_group_*): group g sums the nodes
+  /// node_group_nodes[kNodeGroup g ..] (-1: none) side by side from the
+  /// pairs node_group_pairs[node_group_start[g] .. [g + 1]) of
+  /// workspace->contribution, kNodeGroup a slot.
+  int num_node_groups = 0;
+  const int* node_group_start = nullptr;  ///< #groups + 1
+  const int* node_group_nodes = nullptr;  ///< kNodeGroup #groups
+  const int* node_group_pairs = nullptr;
 
   ForceWorkspace* workspace = nullptr;
 };
+
+/// Nodes summed side by side in the node pass: independent chains of
+/// additions, which the CPU overlaps (one node's chain alone waits on each
+/// addition's latency).
+inline constexpr int kNodeGroup = 4;
 
 struct Stiffness {
   double distance = 0.0;

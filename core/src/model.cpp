@@ -89,11 +89,36 @@ Model::Model(const Mesh& mesh) : mesh_(&mesh) {
     per_node[triangle_b_[t]].push_back(2 * e_count + t_count + t);
     per_node[triangle_c_[t]].push_back(2 * e_count + 2 * t_count + t);
   }
-  node_contribution_start_.assign(num_nodes + 1, 0);
-  for (int n = 0; n < num_nodes; ++n) {
-    node_contribution_start_[n + 1] =
-        node_contribution_start_[n] + static_cast<int>(per_node[n].size());
-    node_contribution_.insert(node_contribution_.end(), per_node[n].begin(), per_node[n].end());
+  // Groups of four nodes, by number of forces (most first, then by index),
+  // each list padded with the zero pair (after the last triangle's) to its
+  // group's longest: +0 added to a sum that started at +0 leaves it as it
+  // is (such a sum is never -0), so the sums keep their bits.
+  const int zero_pair = 2 * e_count + 3 * t_count;
+  std::vector<int> order(num_nodes);
+  for (int n = 0; n < num_nodes; ++n) order[n] = n;
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return per_node[a].size() > per_node[b].size();
+  });
+  const int lanes = force_kernels::kNodeGroup;
+  const int num_groups = (num_nodes + lanes - 1) / lanes;
+  node_group_start_.assign(num_groups + 1, 0);
+  node_group_nodes_.assign(static_cast<size_t>(num_groups) * lanes, -1);
+  node_group_pairs_.clear();
+  for (int g = 0; g < num_groups; ++g) {
+    size_t longest = 0;
+    for (int j = 0; j < lanes && g * lanes + j < num_nodes; ++j) {
+      const int n = order[g * lanes + j];
+      node_group_nodes_[g * lanes + j] = n;
+      longest = std::max(longest, per_node[n].size());
+    }
+    for (size_t slot = 0; slot < longest; ++slot) {
+      for (int j = 0; j < lanes; ++j) {
+        const int n = node_group_nodes_[g * lanes + j];
+        node_group_pairs_.push_back(n >= 0 && slot < per_node[n].size() ? per_node[n][slot]
+                                                                         : zero_pair);
+      }
+    }
+    node_group_start_[g + 1] = static_cast<int>(node_group_pairs_.size());
   }
   ResetRestShape();
 }
@@ -145,7 +170,7 @@ int Model::SetRestShape(std::span<const Vec2> rest) {
 ForceWorkspace Model::MakeWorkspace() const {
   const size_t num_edges = mesh_->edges.size(), num_triangles = mesh_->triangles.size();
   ForceWorkspace ws;
-  ws.contribution.resize(2 * (2 * num_edges + 3 * num_triangles));
+  ws.contribution.assign(2 * (2 * num_edges + 3 * num_triangles + 1), 0.0);
   ws.edge_inv_length_sq.resize(num_edges);
   ws.edge_energy.resize(num_edges);
   ws.triangle_energy.resize(num_triangles);
@@ -280,9 +305,10 @@ double Model::RunKernel(const force_kernels::Stiffness& k, const double* edge_sc
   arrays.edge_scale = edge_scale;
   arrays.triangle_scale = triangle_scale;
   arrays.angle_scale = angle_scale;
-  arrays.num_nodes = static_cast<int>(node_contribution_start_.size()) - 1;
-  arrays.node_contribution_start = node_contribution_start_.data();
-  arrays.node_contribution = node_contribution_.data();
+  arrays.num_node_groups = static_cast<int>(node_group_start_.size()) - 1;
+  arrays.node_group_start = node_group_start_.data();
+  arrays.node_group_nodes = node_group_nodes_.data();
+  arrays.node_group_pairs = node_group_pairs_.data();
   arrays.workspace = &ws;
 
   // Vec2 is two contiguous doubles, so the spans are interleaved (x, y) arrays.

@@ -5,8 +5,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <stdexcept>
 
 namespace calib {
@@ -20,6 +22,62 @@ namespace {
 // it: at the stiff push_centre fit the nodes then moved 0.35 px a substep
 // against the finger's 0.1.)
 constexpr double kEdgeContactEndShare = 0.03;
+
+// Partial results over this many interleaved lanes: the reductions below
+// vectorise (min and max are exact, so the lanes give the plain loop's
+// result).
+constexpr int kLanes = 4;
+
+// The first i with the least |x_i - centre|^2, as the plain loop
+// `if (d < best) { best = d; nearest = i; }` from best = +inf finds it (0
+// when no distance is below +inf).
+int NearestNode(std::span<const Vec2> x, const Vec2& centre) {
+  const int n = static_cast<int>(x.size());
+  const auto distance_sq = [&](int i) { return (x[i] - centre).squaredNorm(); };
+  double lane_min[kLanes];
+  for (double& m : lane_min) m = std::numeric_limits<double>::infinity();
+  int i = 0;
+  for (; i + kLanes <= n; i += kLanes) {
+    for (int l = 0; l < kLanes; ++l) {
+      const double d = distance_sq(i + l);
+      lane_min[l] = d < lane_min[l] ? d : lane_min[l];
+    }
+  }
+  for (; i < n; ++i) {
+    const double d = distance_sq(i);
+    lane_min[0] = d < lane_min[0] ? d : lane_min[0];
+  }
+  double best = lane_min[0];
+  for (int l = 1; l < kLanes; ++l) best = lane_min[l] < best ? lane_min[l] : best;
+  if (!(best < std::numeric_limits<double>::infinity())) return 0;
+  for (i = 0; i < n; ++i) {
+    if (distance_sq(i) == best) return i;
+  }
+  return 0;  // not reached: best is one of the distances
+}
+
+// v_i = (x_i - x_prev_i) inv_h for every node; returns the largest |v_i|^2
+// as `fastest = std::max(fastest, |v_i|^2)` from 0 finds it.
+double SetVelocities(std::span<const Vec2> x, std::span<const Vec2> x_prev, double inv_h,
+                     std::span<Vec2> v) {
+  const size_t n = x.size();
+  double lane_max[kLanes] = {0.0, 0.0, 0.0, 0.0};
+  size_t i = 0;
+  for (; i + kLanes <= n; i += kLanes) {
+    for (size_t l = 0; l < kLanes; ++l) {
+      v[i + l] = (x[i + l] - x_prev[i + l]) * inv_h;
+      const double s = v[i + l].squaredNorm();
+      lane_max[l] = lane_max[l] < s ? s : lane_max[l];
+    }
+  }
+  for (; i < n; ++i) {
+    v[i] = (x[i] - x_prev[i]) * inv_h;
+    lane_max[0] = std::max(lane_max[0], v[i].squaredNorm());
+  }
+  double fastest = lane_max[0];
+  for (int l = 1; l < kLanes; ++l) fastest = std::max(fastest, lane_max[l]);
+  return fastest;
+}
 
 }  // namespace
 
@@ -387,15 +445,7 @@ bool Simulator::Substep(int substep) {
     const Vec2 push = (1.0 - alpha0) * scene_.forces[frame_] +
                       alpha0 * scene_.forces[std::min(frame_ + 1, scene_.num_frames - 1)];
     const Vec2 centre = discs_[scene_.force_obstacle].centre;
-    int nearest = 0;
-    double best = std::numeric_limits<double>::infinity();
-    for (int i = 0; i < n; ++i) {
-      const double d = (x_[i] - centre).squaredNorm();
-      if (d < best) {
-        best = d;
-        nearest = i;
-      }
-    }
+    const int nearest = NearestNode(x_, centre);
     if (push_effect_ != nullptr) {
       PushInfo info;
       info.push = push;
@@ -450,12 +500,7 @@ bool Simulator::Substep(int substep) {
 
   if (!ApplyConstraints()) return false;
 
-  const double inv_h = 1.0 / h;
-  double fastest_sq = 0.0;
-  for (int i = 0; i < n; ++i) {
-    v_[i] = (x_[i] - x_prev_[i]) * inv_h;
-    fastest_sq = std::max(fastest_sq, v_[i].squaredNorm());
-  }
+  const double fastest_sq = SetVelocities(x_, x_prev_, 1.0 / h, v_);
   last_step_px_ = std::sqrt(fastest_sq) * h;
   for (EffectTerm* effect : after_substep_effects_) effect->AfterSubstep(x_, h);
   return true;
@@ -495,9 +540,13 @@ void Simulator::GatherStepContacts() {
     const double r = discs_[k].radius_px;
     const Vec2 motion = c - discs_start_[k].centre;
     const double reach = r + 1.0 + 2.0 * last_step_px_ + motion.norm();
+    // Beyond this squared distance a node is surely out of reach (sqrt is
+    // correctly rounded): its square root is not taken.
+    const double reach_sq_bound = reach * reach * (1.0 + 1e-9);
     for (int i = 0; i < n; ++i) {
       if (inverse_weight_[i] == 0.0) continue;
       const Vec2 d = x_[i] - c;
+      if (d.squaredNorm() > reach_sq_bound) continue;
       const double dist = d.norm();
       if (!(dist < reach && dist > 0.0)) continue;
       StepContact contact;
@@ -511,6 +560,9 @@ void Simulator::GatherStepContacts() {
     for (const std::vector<int>& loop : mesh_.boundary_loops) {
       for (size_t e = 0, m = loop.size(); e < m; ++e) {
         const int a = loop[e], b = loop[(e + 1) % m];
+        // An edge whose bounding box lies farther than the reach (and a
+        // pixel) from the centre has no point within it.
+        if (!BoxWithin(x_[a], x_[b], c, reach + 1.0)) continue;
         // Nearest an end node: that node's contact. s > 0: the centre is in
         // front of the edge.
         EdgePoint nearest;
@@ -556,6 +608,10 @@ void Simulator::StepDampedSecondOrder(double h, double damping_per_s, double mas
 bool Simulator::ApplyConstraints() {
   // Clamped nodes have inverse weight 0: the integrator and the projections
   // never move them, so they stay at their rest positions.
+  // Whether every triangle passed the repair's test at the present
+  // positions: a round whose projections then move nothing would find no
+  // triangle to repair, so its scan is skipped (the same result).
+  bool triangles_pass = false;
   for (int iter = 0; iter < options_.constraint_iterations; ++iter) {
     // Edges first, nodes last: a node is never left inside a disc by the
     // edge step (the check below holds nodes to it; an edge that the rounds
@@ -569,10 +625,15 @@ bool Simulator::ApplyConstraints() {
             ? ProjectBoundaryOutOfDiscs(mesh_, discs_, inverse_weight_, x_, start)
             : 0;
     const int moved = edges_moved + ProjectOutOfDiscs(discs_, inverse_weight_, x_, start);
+    // The projections count every node they move.
+    if (moved > 0) triangles_pass = false;
     const int repaired =
-        RepairInvertedTriangles(mesh_, options_.min_area_fraction, inverse_weight_, x_);
+        triangles_pass
+            ? 0
+            : RepairInvertedTriangles(mesh_, options_.min_area_fraction, inverse_weight_, x_);
     // A round that moved nothing found every constraint met.
     if (moved == 0 && repaired == 0) return true;
+    triangles_pass = repaired == 0;
   }
   // Out of rounds: constraints that are still not met end the candidate.
   if (const int t = FindInvertedTriangle(mesh_, x_); t >= 0) {

@@ -216,19 +216,27 @@ std::string ToString(EvaluationStatus status) { return EnumToString(kEvaluationS
 Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions& options)
     : prepared_(prepared),
       simulator_(prepared.mesh, prepared.scene, options),
-      mesh_mask_(prepared.object_masks.at(0)) {}
+      mesh_mask_(prepared.object_masks.at(0)),
+      object_px_(prepared.object_masks.size(), -1) {}
 
 Evaluator::Evaluator(const PreparedRecording& prepared, const SimulationOptions& options,
                      const ModelDefinition& model)
     : prepared_(prepared),
       simulator_(prepared.mesh, prepared.scene, options, model),
-      mesh_mask_(prepared.object_masks.at(0)) {}
+      mesh_mask_(prepared.object_masks.at(0)),
+      object_px_(prepared.object_masks.size(), -1) {}
 
 FrameScore Evaluator::ScoreFrame(int frame) {
   const Vec2* x = prepared_.motion_blur_frames > 0.0 ? Blurred(frame).data()
                                                      : simulator_.positions().data();
   rasterizer_.RasterizeMeshCoverage(prepared_.mesh, x, mesh_mask_, boundary_);
-  return CompareCoverage(prepared_.object_masks[frame], mesh_mask_, boundary_);
+  // The mesh covers a band of the mask's rows: only those are compared word
+  // by word, the object's pixels elsewhere are all missed.
+  const BitMask& object = prepared_.object_masks[frame];
+  if (object_px_[frame] < 0) object_px_[frame] = object.Count();
+  const auto [row_begin, row_end] = rasterizer_.covered_rows();
+  return CompareCoverageInRows(object, object_px_[frame], mesh_mask_, row_begin, row_end,
+                               boundary_);
 }
 
 std::span<const Vec2> Evaluator::Blurred(int frame) {

@@ -2,7 +2,8 @@
 // on, then the scalar step) against the plain index-order loops they
 // replace: same return values and the same bits in every position, on meshes
 // whose sizes are not multiples of the scan block, with many, few and no
-// elements to act on, and with clamped nodes.
+// elements to act on, and with clamped nodes; and the edges' bounding-box
+// prefilter.
 
 #include "calib/core/constraints.h"
 
@@ -10,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -174,6 +176,30 @@ TEST(Constraints, ProjectionMatchesThePlainLoopBitForBit) {
       }
     }
   }
+}
+
+TEST(Constraints, BoxWithinIsFalseOnlyForSegmentsBeyondTheDistance) {
+  // The prefilter of the edge contacts: false must mean that every point of
+  // the segment lies farther than the distance (checked on the nearest
+  // point), and it must skip far segments (not answer true always).
+  std::mt19937_64 rng(808);
+  std::uniform_real_distribution<double> coordinate(-50.0, 50.0), length(0.0, 30.0);
+  int skipped = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const Vec2 a(coordinate(rng), coordinate(rng));
+    const Vec2 b = a + Vec2(length(rng) - 15.0, length(rng) - 15.0);
+    const Vec2 p(coordinate(rng), coordinate(rng));
+    const double distance = length(rng);
+    if (BoxWithin(a, b, p, distance)) continue;
+    ++skipped;
+    const Vec2 e = b - a;
+    const double t = e.squaredNorm() > 0.0 ? std::clamp((p - a).dot(e) / e.squaredNorm(), 0.0, 1.0)
+                                           : 0.0;
+    ASSERT_GT((a + t * e - p).norm(), distance) << "trial " << trial;
+  }
+  EXPECT_GT(skipped, 10000);
+  // A segment through the point is never skipped, at any distance.
+  EXPECT_TRUE(BoxWithin(Vec2(-1.0, 0.0), Vec2(1.0, 0.0), Vec2(0.0, 0.0), 0.0));
 }
 
 }  // namespace

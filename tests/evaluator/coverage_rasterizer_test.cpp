@@ -3,8 +3,8 @@
 // square by Sutherland-Hodgman, its shoelace area), the total against the
 // polygon's area, exactness on pixel-aligned shapes, clipping to the mask,
 // continuity of the score under translation (where the centre rule jumps by
-// whole pixels), bit-identical output for the same input and no allocation
-// in steady state.
+// whole pixels), bit-identical output for the same input, the score over the
+// covered rows alone and no allocation in steady state.
 
 #include "calib/core/mesher.h"
 #include "calib/evaluator/rasterizer.h"
@@ -434,6 +434,43 @@ TEST(CoverageRasterizer, SameInputGivesBitIdenticalOutput) {
     EXPECT_TRUE(fresh.interior == used.interior && fresh.boundary == used.boundary)
         << "trial " << trial;
   }
+}
+
+TEST(CoverageRasterizer, ScoreOverTheCoveredRowsIsTheWholeMasksScore) {
+  // CompareCoverageInRows counts only the rows the last fill touched: the
+  // same score, field for field, as counting every word, for shapes inside
+  // the mask, clipped at its top or bottom, beside it and with none at all.
+  std::mt19937_64 rng(707);
+  Coverage c(150, 110, -7, 4);
+  BitMask object(150, 110, -7, 4);
+  c.rasterizer.FillPolygons({StarPolygon(rng, Vec2(60.0, 55.0), 11, 15.0, 40.0)}, object);
+  const int64_t object_px = object.Count();
+  const auto expect_same = [&](const std::string& what) {
+    const auto [row_begin, row_end] = c.rasterizer.covered_rows();
+    ASSERT_LE(0, row_begin);
+    ASSERT_LE(row_begin, row_end);
+    ASSERT_LE(row_end, c.interior.height());
+    for (int y = 0; y < c.interior.height(); ++y) {
+      if (y >= row_begin && y < row_end) continue;
+      for (int w = 0; w < c.interior.words_per_row(); ++w) {
+        ASSERT_EQ(c.interior.Row(y)[w], 0u) << what << ": a pixel in row " << y;
+      }
+    }
+    const FrameScore whole = CompareCoverage(object, c.interior, c.boundary);
+    const FrameScore rows =
+        CompareCoverageInRows(object, object_px, c.interior, row_begin, row_end, c.boundary);
+    EXPECT_EQ(rows, whole) << what;
+  };
+  for (int trial = 0; trial < 40; ++trial) {
+    const Vec2 centre(Uniform(rng, -30.0, 170.0), Uniform(rng, -20.0, 140.0));
+    c.Fill({StarPolygon(rng, centre, 3 + static_cast<int>(rng() % 15), 4.0, 45.0)});
+    expect_same("trial " + std::to_string(trial));
+  }
+  c.Fill({});
+  EXPECT_EQ(c.rasterizer.covered_rows(), std::make_pair(0, 0));
+  expect_same("no loop");
+  c.Fill({Rectangle(-50.0, -40.0, 300.0, 200.0)});  // the whole mask
+  expect_same("the whole mask");
 }
 
 TEST(CoverageRasterizer, SteadyStateDoesNotAllocate) {

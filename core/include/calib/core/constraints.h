@@ -5,6 +5,7 @@
 
 #include "calib/core/mesh.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 
@@ -48,6 +49,15 @@ struct EdgePoint {
   double s = 0.0;
 };
 bool NearestInteriorEdgePoint(const Vec2& a, const Vec2& b, const Vec2& centre, EdgePoint* edge_point);
+
+/// Whether the bounding box of segment a-b comes within `distance` of `p`
+/// along both axes: false means every point of the segment is farther than
+/// `distance` from p (a test without division or square root, to skip the
+/// edges far from an obstacle before NearestInteriorEdgePoint).
+inline bool BoxWithin(const Vec2& a, const Vec2& b, const Vec2& p, double distance) {
+  return !(p.x() + distance < std::min(a.x(), b.x()) || p.x() - distance > std::max(a.x(), b.x()) ||
+           p.y() + distance < std::min(a.y(), b.y()) || p.y() - distance > std::max(a.y(), b.y()));
+}
 
 /// Edges inside a disc by less than this are left alone by
 /// ProjectBoundaryOutOfDiscs: invisible to the rasteriser.

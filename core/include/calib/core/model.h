@@ -38,7 +38,8 @@ std::string ToString(ForceKernel kernel);
 struct ForceWorkspace {
   /// Every force on a node, (2 #E + 3 #T) x 2, as blocks of (x, y) pairs:
   /// per edge the force on node j, per edge the force on node i (its exact
-  /// negation), then per triangle the force on corner a, on b, on c.
+  /// negation), then per triangle the force on corner a, on b, on c; then
+  /// one pair (+0, +0) that no pass writes, which pads the node sums.
   std::vector<double> contribution;
   // Per edge (#E).
   std::vector<double> edge_inv_length_sq;  ///< 1 / |p_j - p_i|^2 (0 if degenerate)
@@ -120,10 +121,14 @@ class Model {
   std::vector<int> triangle_edge_ab_, triangle_edge_bc_, triangle_edge_ca_;
   std::vector<double> rest_area_, inv_rest_area_;          ///< A0, 1 / A0 per triangle
   std::vector<double> rest_cos_a_, rest_sin_a_, rest_cos_b_, rest_sin_b_;  ///< rest corners a, b
-  // Node n's forces are ForceWorkspace::contribution pairs
-  // node_contribution_[node_contribution_start_[n] .. [n + 1]), in the order
-  // of the plain scatter: edges in index order, then triangles in index order.
-  std::vector<int> node_contribution_start_, node_contribution_;
+  // Node n's forces are ForceWorkspace::contribution pairs, in the order of
+  // the plain scatter: edges in index order, then triangles in index order.
+  // They are summed four nodes at a time (nodes of about as many forces
+  // together; force_kernels::Arrays): group g's nodes are
+  // node_group_nodes_[4 g .. 4 g + 4) (-1: none), its pairs
+  // node_group_pairs_[node_group_start_[g] ..), four a slot, each node's
+  // list padded with the zero pair to the group's longest.
+  std::vector<int> node_group_start_, node_group_nodes_, node_group_pairs_;
   std::vector<double> edge_weight_, triangle_weight_, angle_weight_;  ///< empty: unweighted
 };
 

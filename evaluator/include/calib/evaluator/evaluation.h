@@ -257,6 +257,8 @@ class Evaluator {
   Rasterizer rasterizer_;
   BitMask mesh_mask_;
   std::vector<PixelCoverage> boundary_;  // the partly covered pixels
+  // Each frame's object pixel count, counted at its first score (-1 before).
+  std::vector<int64_t> object_px_;
   std::vector<Vec2> last_positions_;     // the last frame's (motion blur)
   std::vector<Vec2> seen_positions_;     // Blurred's
   std::vector<Vec2> outline_normal_;     // per node, the outline's outward sum

@@ -51,6 +51,7 @@
 #include "calib/evaluator/pixel_coverage.h"
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace calib {
@@ -73,6 +74,12 @@ class Rasterizer {
   /// As RasterizeMeshCoverage for `loops` as FillPolygons takes them.
   void FillPolygonsCoverage(const std::vector<std::vector<Vec2>>& loops, BitMask& interior,
                             std::vector<PixelCoverage>& boundary);
+
+  /// The mask rows [first, second) that the last of the calls above
+  /// touched: `interior` has no pixel outside them (CompareCoverageInRows).
+  std::pair<int, int> covered_rows() const {
+    return row_lo_ < row_hi_ ? std::pair<int, int>(row_lo_, row_hi_) : std::pair<int, int>(0, 0);
+  }
 
   /// Fast path. Clears `mask` and fills the region enclosed by
   /// `mesh.boundary_loops`, with node positions `positions` (#N, frame

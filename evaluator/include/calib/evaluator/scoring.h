@@ -12,6 +12,7 @@
 #include "calib/evaluator/bit_mask.h"
 #include "calib/evaluator/pixel_coverage.h"
 
+#include <cstdint>
 #include <span>
 
 namespace calib {
@@ -40,6 +41,15 @@ struct FrameScore {
 /// pixel; the sums run in `boundary`'s order. No allocation.
 FrameScore CompareCoverage(const BitMask& object, const BitMask& interior,
                            std::span<const PixelCoverage> boundary);
+
+/// CompareCoverage, the same result, for an `interior` with no pixel outside
+/// rows [row_begin, row_end) (mask rows, 0 <= row_begin <= row_end <=
+/// height; Rasterizer::covered_rows()) and `object_px` the pixel count of
+/// `object`: only those rows are counted, the object's pixels elsewhere are
+/// missed. For a mesh a fraction of the mask's height.
+FrameScore CompareCoverageInRows(const BitMask& object, int64_t object_px,
+                                 const BitMask& interior, int row_begin, int row_end,
+                                 std::span<const PixelCoverage> boundary);
 
 /// Two bit masks (the mesh as a bit mask: CompareCoverage with no partly
 /// covered pixel).
