@@ -345,6 +345,7 @@ nlohmann::json ToJson(const LoopReport& r) {
       entry["tip_x_px"] = Numbers(rec.tip_x_px);
       entry["tip_y_px"] = Numbers(rec.tip_y_px);
     }
+    if (!rec.registered_iou.empty()) entry["registered_iou"] = Numbers(rec.registered_iou);
     recordings.push_back(std::move(entry));
   }
   j["recordings"] = recordings;
@@ -430,7 +431,8 @@ LoopReport LoopReportFromJson(const nlohmann::json& doc) {
     r.recordings.push_back({rec.Text("name"), rec.Text("path"), rec.Text("role"),
                             static_cast<int>(rec.Int("num_frames")), rec.Num("fps"),
                             OptionalNumbers(rec, recordings[i], "tip_x_px"),
-                            OptionalNumbers(rec, recordings[i], "tip_y_px")});
+                            OptionalNumbers(rec, recordings[i], "tip_y_px"),
+                            OptionalNumbers(rec, recordings[i], "registered_iou")});
   }
   const json& stages = in.Array("stages");
   for (size_t i = 0; i < stages.size(); ++i) {

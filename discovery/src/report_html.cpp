@@ -80,6 +80,17 @@ std::string FramePlotScript(const ReportRecording& rec, const RecordingScore* be
     plots.push_back("$after using 1:2 with lines lw 1.5 lc rgb '#2471a3' title 'after (final model)'");
   }
   if (plots.empty()) return "";
+  if (series == &RecordingScore::frame_iou && !rec.registered_iou.empty()) {
+    std::vector<std::vector<double>> registered;
+    const double fps = rec.fps > 0 ? rec.fps : 1.0;
+    for (size_t f = 0; f < rec.registered_iou.size(); ++f) {
+      registered.push_back({static_cast<double>(f) / fps, rec.registered_iou[f]});
+    }
+    script += Datablock("registered", registered);
+    plots.push_back(
+        "$registered using 1:2 with lines lw 1 lc rgb '#7f8c8d' title 'the mesh registered to the "
+        "video'");
+  }
   script += fmt::format(
       "set title {}\nset xlabel 'time (s)'\nset ylabel {}\nset grid\n"
       "set key top left\nset yrange {}\nplot {}\n",
@@ -369,7 +380,12 @@ HtmlReportSummary WriteLoopReportHtml(const fs::path& html_path, const LoopRepor
     const std::string iou_script = FramePlotScript(rec, b, a, &RecordingScore::frame_iou,
                                                    "per-frame IoU", "IoU", "[0:1]");
     if (!iou_script.empty()) {
-      h << plot.Figure(iou_script, "Intersection over union per frame: base model and final model");
+      h << plot.Figure(iou_script,
+                       rec.registered_iou.empty()
+                           ? "Intersection over union per frame: base model and final model"
+                           : "Intersection over union per frame: base model, final model and "
+                             "the mesh registered to each frame (the most a model moving this "
+                             "mesh could cover)");
     }
     const std::string tip_script = TipPlotScript(rec, b, a);
     if (!tip_script.empty()) {

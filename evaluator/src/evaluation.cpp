@@ -114,6 +114,7 @@ PreparedRecording FirstFrames(const PreparedRecording& prepared, int frames) {
     if (track.discs.size() > static_cast<size_t>(n)) track.discs.resize(n);
   }
   if (rec.forces.size() > static_cast<size_t>(n)) rec.forces.resize(n);
+  if (cut.registered_iou.size() > static_cast<size_t>(n)) cut.registered_iou.resize(n);
   return cut;
 }
 
@@ -129,6 +130,17 @@ void TrackObservedMotion(PreparedRecording& prepared, double window_s) {
   NodeMotion node = EstimateNodeMotion(mesh, clamped, tracked, fps, window, std::min(window, 5));
   motion.node_rest_px = std::move(node.rest_shape_px);
   motion.node_velocity_px_s = std::move(node.velocity_px_s);
+  // The tracked shapes scored as a model's are: the most a model moving
+  // this mesh can match in each frame.
+  Rasterizer rasterizer;
+  BitMask interior(prepared.object_masks[0]);
+  std::vector<PixelCoverage> boundary;
+  prepared.registered_iou.clear();
+  for (int f = 0; f < window; ++f) {
+    rasterizer.RasterizeMeshCoverage(mesh, tracked.positions[f], interior, boundary);
+    prepared.registered_iou.push_back(
+        CompareCoverage(prepared.object_masks[f], interior, boundary).iou);
+  }
 }
 
 void SetStartPose(PreparedRecording& prepared) {

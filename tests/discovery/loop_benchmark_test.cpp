@@ -51,9 +51,9 @@ ReportStage Stage(const std::string& name, StageDecision decision,
 TEST(LoopBenchmark, SummarisesAnObjectFromItsReport) {
   LoopReport r;
   r.run_time_s = 42.5;
-  r.recordings = {{"a", "/f/a", "train", 10, 30.0, {}, {}},
-                  {"b", "/f/b", "holdout", 10, 30.0, {}, {}},
-                  {"c", "/f/c", "holdout", 10, 30.0, {}, {}}};
+  r.recordings = {{"a", "/f/a", "train", 10, 30.0, {}, {}, {}},
+                  {"b", "/f/b", "holdout", 10, 30.0, {}, {}, {}},
+                  {"c", "/f/c", "holdout", 10, 30.0, {}, {}, {}}};
   r.stages = {Stage("base", StageDecision::kBase,
                     {Score("a", 1000), Score("b", 1200), Score("c", 800)}, 20.0),
               Stage("base+plasticity", StageDecision::kAccepted,
@@ -111,7 +111,7 @@ TEST(LoopBenchmark, SummarisesAnObjectFromItsReport) {
 
 TEST(LoopBenchmark, WithoutHeldOutRecordingsHeldOutValuesAreNaN) {
   LoopReport r;
-  r.recordings = {{"a", "/f/a", "train", 10, 30.0, {}, {}}};
+  r.recordings = {{"a", "/f/a", "train", 10, 30.0, {}, {}, {}}};
   r.stages = {Stage("base", StageDecision::kBase, {Score("a", 1000)}, 0.0)};
   FamilyObject object;
   object.id = "x";
@@ -460,8 +460,8 @@ struct FakeLoop {
       LoopReport r;
       r.command = o.command;
       r.run_time_s = 2.0;
-      r.recordings = {{"push-a", o.train[0].string(), "train", 10, 30.0, {}, {}},
-                      {"push-b", o.holdout[0].string(), "holdout", 10, 30.0, {}, {}}};
+      r.recordings = {{"push-a", o.train[0].string(), "train", 10, 30.0, {}, {}, {}},
+                      {"push-b", o.holdout[0].string(), "holdout", 10, 30.0, {}, {}, {}}};
       r.stages = {
           Stage("base", StageDecision::kBase, {Score("push-a", 900), Score("push-b", 1000)}, 4.0)};
       if (id.rfind("p-", 0) == 0) {

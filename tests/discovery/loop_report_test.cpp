@@ -1,6 +1,7 @@
 // The loop report: report.json round trip and content, report.html with its
 // gnuplot SVG plots (or a clear notice without gnuplot), determinism.
 
+#include "calib/discovery/loop.h"
 #include "calib/discovery/loop_report.h"
 #include "calib/discovery/report_html.h"
 
@@ -72,7 +73,7 @@ LoopReport MakeReport(const fs::path& dir) {
   r.seed = 7;
   r.selection_rule = "keep an effect when the held-out XOR sum drops by more than 2%";
   r.run_time_s = 12.5;
-  r.recordings = {{"a", "/data/a", "train", 40, 30.0, {}, {}}, {"b", "/data/b", "holdout", 40, 30.0, {}, {}}};
+  r.recordings = {{"a", "/data/a", "train", 40, 30.0, {}, {}, {}}, {"b", "/data/b", "holdout", 40, 30.0, {}, {}, {}}};
 
   ReportStage base;
   base.name = "base";
@@ -95,6 +96,8 @@ LoopReport MakeReport(const fs::path& dir) {
     r.recordings[0].tip_y_px.push_back(200.0);
     base.errors[0].tip_x_px.push_back(140.0);
     base.errors[0].tip_y_px.push_back(200.0);
+    // The mesh registered to each frame of the video.
+    r.recordings[0].registered_iou.push_back(0.95 + 0.001 * (f % 3));
   }
   base.errors[0].median_tip_distance_px = 12.25;
 
@@ -174,6 +177,20 @@ TEST(LoopReport, JsonRoundTripsWithTheBeforeAfterTable) {
   EXPECT_EQ(back.stages[1].equally_good.fits, 0);
   // The base model's independent searches, where there were several.
   EXPECT_EQ(doc["stages"][0]["restart_training_xor"], nlohmann::json::array({2100.0, 1000.0, 1003.0}));
+  // The registered mesh's IoU: for the recording that has it only.
+  ASSERT_EQ(doc["recordings"][0]["registered_iou"].size(), 40u);
+  EXPECT_DOUBLE_EQ(doc["recordings"][0]["registered_iou"][1].get<double>(), 0.95 + 0.001);
+  EXPECT_FALSE(doc["recordings"][1].contains("registered_iou"));
+  EXPECT_EQ(back.recordings[0].registered_iou, report.recordings[0].registered_iou);
+  // The text table sets the final model's IoU beside it, over the whole
+  // recording and its first second (30 frames at 30 fps): the registered
+  // mesh's mean over 0.950, 0.951, 0.952, ...
+  const std::string table = BeforeAfterTable(report);
+  EXPECT_NE(table.find("a: mean IoU 0.9020 (first second 0.9020); the mesh registered to the "
+                       "video 0.9510 (0.9510)"),
+            std::string::npos)
+      << table;
+  EXPECT_EQ(table.find("b: mean IoU"), std::string::npos) << table;
   EXPECT_FALSE(doc["stages"][1].contains("restart_training_xor"));
   EXPECT_EQ(doc["stages"][0]["holdout_sensitivity_px"], 12.5);
   EXPECT_EQ(back.stages[0].holdout_sensitivity_px, 12.5);
@@ -293,6 +310,9 @@ TEST(LoopReportHtml, EmbedsGnuplotSvgPlots) {
   EXPECT_NE(html.find("<b>uninformative</b>"), std::string::npos);
   EXPECT_NE(html.find("on the box's bound: tau = 0.5 (upper bound)"), std::string::npos);
   EXPECT_NE(html.find("The tip across the image over time"), std::string::npos);
+  EXPECT_NE(html.find("base model, final model and the mesh registered to each frame"),
+            std::string::npos)
+      << "recording a's IoU plot has the registered mesh";
   EXPECT_EQ(html.find("This report has no plots"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir / "report.json"));
 

@@ -134,6 +134,7 @@ TEST(PrepareSegmented, IsPrepareRecordingAfterItsSegmentation) {
   EXPECT_EQ(again.scene.obstacle_discs.size(), whole.scene.obstacle_discs.size());
   EXPECT_EQ(again.scene.forces, whole.scene.forces);
   EXPECT_EQ(again.motion_blur_frames, whole.motion_blur_frames);
+  EXPECT_TRUE(whole.registered_iou.empty()) << "a pushed object is not tracked";
 }
 
 TEST(PrepareSegmented, MasksThatDoNotFitTheRecordingAreNamed) {

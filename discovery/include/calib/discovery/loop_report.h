@@ -34,6 +34,10 @@ struct ReportRecording {
   /// pixel farthest from the clamps' centre (FarthestPixelFrom), px; empty
   /// otherwise.
   std::vector<double> tip_x_px, tip_y_px;
+  /// For an object that moves by itself: per frame, the IoU of the mesh
+  /// registered to the video (PreparedRecording::registered_iou), what any
+  /// model moving this mesh could reach; empty otherwise.
+  std::vector<double> registered_iou;
 };
 
 /// How one calibrated model did on one recording.

@@ -64,6 +64,13 @@ struct PreparedRecording {
   /// scored with each outline node moved outwards by this times its speed
   /// across the outline (px a frame). 0: none.
   double motion_blur_frames = 0.0;
+  /// For an object that moves by itself, tracked (TrackObservedMotion): per
+  /// tracked frame, the IoU (area coverage, as scored) of the mesh
+  /// registered to that frame's outline: how well this mesh can cover the
+  /// object at all, whatever moves it. A model's frame far below it misses
+  /// the motion; a frame where it is low, the mesh or the segmentation
+  /// cannot follow. Empty when not tracked.
+  std::vector<double> registered_iou;
 };
 
 /// How far a moving object's mask reaches beyond the object, per pixel a
@@ -102,7 +109,8 @@ Scene::ObservedMotion EstimateObservedMotion(const Recording& recording,
 
 /// `prepared` cut to its first `frames` frames (1 <= frames; more than it
 /// has: all of them): masks, scene (obstacles, forces) and the recording's
-/// frame count and tracks. The mesh and the observed motion stay.
+/// frame count and tracks, and the registered mesh's IoU. The mesh and the
+/// observed motion stay.
 PreparedRecording FirstFrames(const PreparedRecording& prepared, int frames);
 
 /// Tracks prepared.mesh through the first `window_s` seconds of
